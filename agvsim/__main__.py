@@ -1,0 +1,5 @@
+import sys
+
+from agvsim.cli import main
+
+sys.exit(main())

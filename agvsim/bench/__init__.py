@@ -1,0 +1,1 @@
+"""Benchmarks behind ``agvsim bench`` (one module per benchmark)."""

@@ -1,0 +1,260 @@
+"""``agvsim bench localizer``: speed against ArUco+solvePnP and AprilTag 3, and accuracy over the envelope.
+
+Speed frames (512 x 480 unless scaled) each hold one two-bar target, one
+ArUco DICT_4X4_50 marker and one AprilTag tag36h11, on a real-photo
+background; every detector runs on the same frames, one thread.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import time
+
+#: the one pupil_apriltags Detector of the process: destroying one can segfault
+#: (pupil-labs/apriltags#46), so it is created once and kept until exit.
+_APRILTAG_DETECTOR: list = []
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", type=int, default=40, help="speed frames per configuration (default 40)")
+    p.add_argument("--repeats", type=int, default=5, help="timed repeats per frame (default 5)")
+    p.add_argument("--samples", type=int, default=600, help="accuracy frames over the envelope (default 600)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--skip-peers", action="store_true", help="time only the localizer")
+
+
+def _markers():
+    import cv2
+
+    aruco = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50), 0, 96, borderBits=1)
+    april = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), 0, 100,
+                                          borderBits=1)
+    return aruco, april
+
+
+def _paste(refl, tag, x, y, size):
+    import cv2
+    import numpy as np
+
+    t = cv2.resize(tag, (size, size), interpolation=cv2.INTER_NEAREST).astype(float) / 255.0
+    q = int(size * 0.25)  # white quiet zone
+    refl[y - q:y + size + q, x - q:x + size + q] = 0.9
+    refl[y:y + size, x:x + size] = np.where(t > 0.5, 0.9, 0.06)
+
+
+def _speed_frames(camera, n, rng, n_targets=1, with_markers=True):
+    import numpy as np
+
+    from localizer.synthetic import photo_background, real_photos, render_frame
+    from localizer import TargetPose
+
+    photos = list(real_photos(camera).values()) or [np.full(camera.shape, 0.5)]
+    aruco, april = _markers()
+    frames = []
+    s = camera.width / 512.0
+    for i in range(n):
+        refl = photos[i % len(photos)].copy()
+        if with_markers:
+            _paste(refl, aruco, int(40 * s), int(60 * s), int(80 * s))
+            _paste(refl, april, int(40 * s), int(280 * s), int(80 * s))
+        poses = []
+        for k in range(n_targets):
+            cols = n_targets if n_targets <= 4 else 4
+            gx = (k % cols + 0.5) / cols
+            gy = (k // cols + 0.5) / max(1, math.ceil(n_targets / cols))
+            x = (0.45 + 0.5 * gx) * camera.width if n_targets == 1 else gx * camera.width
+            x = 0.62 * camera.width if n_targets == 1 else x
+            y = gy * camera.height
+            d = rng.uniform(2.5, 4.0) if n_targets <= 2 else rng.uniform(4.5, 6.0)
+            z = d
+            poses.append(TargetPose(d, math.atan((x - camera.cx) / camera.fx), rng.uniform(-0.5, 0.5),
+                                    (y - camera.cy) / camera.fy * z))
+        frames.append(render_frame(camera, poses, lighting="normal", blur=0.6, noise=1.5, background=refl, rng=rng))
+    return frames
+
+
+def _time(fn, frames, repeats):
+    per = []
+    for f in frames:
+        fn(f)
+        best = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn(f)
+            best.append(time.perf_counter() - t0)
+        per.append(statistics.median(best))
+    return 1000.0 * statistics.median(per)
+
+
+def _peers(camera):
+    import cv2
+    import numpy as np
+
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50),
+                                  cv2.aruco.DetectorParameters())
+    obj = np.array([[-0.05, 0.05, 0], [0.05, 0.05, 0], [0.05, -0.05, 0], [-0.05, -0.05, 0]], np.float32)
+    K = camera.K
+    dist = np.zeros(5)
+
+    def aruco(img):
+        corners, ids, _ = det.detectMarkers(img)
+        out = []
+        for c in corners:
+            out.append(cv2.solvePnP(obj, c.reshape(4, 2), K, dist, flags=cv2.SOLVEPNP_IPPE_SQUARE))
+        return out
+
+    try:
+        from pupil_apriltags import Detector
+    except ImportError:
+        return {"aruco": aruco}, None
+    if not _APRILTAG_DETECTOR:
+        _APRILTAG_DETECTOR.append(Detector(families="tag36h11", nthreads=1))
+    apr = _APRILTAG_DETECTOR[0]
+    params = (camera.fx, camera.fy, camera.cx, camera.cy)
+
+    def april(img):
+        return apr.detect(img, estimate_tag_pose=True, camera_params=params, tag_size=0.1)
+
+    return {"aruco": aruco, "apriltag": april}, apr
+
+
+def run(args) -> dict:
+    import numpy as np
+
+    from localizer import Camera, detect_targets
+
+    rng = np.random.default_rng(args.seed)
+    cam = Camera.thesis(16.0)
+    result: dict = {"speed": {}, "resolution": [], "targets": []}
+    frames = _speed_frames(cam, args.frames, rng)
+    found = {"exact": 0, "aruco": 0, "apriltag": 0}
+    for f in frames:
+        found["exact"] += len(detect_targets(f, cam)) >= 1
+    for method in ("exact", "thesis"):
+        result["speed"][f"localizer_{method}_ms"] = _time(lambda f: detect_targets(f, cam, method=method),
+                                                          frames, args.repeats)
+    if not args.skip_peers:
+        peers, _ = _peers(cam)
+        for name, fn in peers.items():
+            result["speed"][f"{name}_ms"] = _time(fn, frames, args.repeats)
+            found[name] = sum(len(fn(f)) >= 1 for f in frames)
+    result["speed"]["frames"] = len(frames)
+    result["speed"]["found"] = found
+    for w, h in ((512, 480), (1280, 1200), (2048, 1920)):
+        c = cam.scaled(w, h)
+        fr = _speed_frames(c, max(3, args.frames // 8), rng)
+        row = {"size": f"{w}x{h}", "localizer_exact_ms": _time(lambda f: detect_targets(f, c), fr, args.repeats),
+               "found": sum(len(detect_targets(f, c)) >= 1 for f in fr) / len(fr)}
+        if not args.skip_peers:
+            peers, _ = _peers(c)
+            for name, fn in peers.items():
+                row[f"{name}_ms"] = _time(fn, fr, max(1, args.repeats // 2))
+        result["resolution"].append(row)
+    for n in (0, 1, 2, 4, 8):
+        fr = _speed_frames(cam, max(3, args.frames // 8), rng, n_targets=n, with_markers=False)
+        found_n = statistics.mean(len(detect_targets(f, cam)) for f in fr)
+        result["targets"].append({"targets": n, "found_mean": found_n,
+                                  "localizer_exact_ms": _time(lambda f: detect_targets(f, cam), fr, args.repeats)})
+    result["accuracy"] = accuracy(args.samples, rng)
+    result["false_positives"] = false_positives(rng)
+    return result
+
+
+def accuracy(n: int, rng) -> dict:
+    """Random in-envelope poses: both lenses and polarities, dim/normal/saturated,
+    blur 0-1 px, noise 0-3 grey levels, real-photo or flat backgrounds."""
+    import numpy as np
+
+    from localizer import Camera, detect_targets
+    from localizer.synthetic import random_pose, real_photos, render_frame, target_outline
+
+    cams = {16: Camera.thesis(16.0), 50: Camera.thesis(50.0)}
+    photos = list(real_photos(cams[16]).values())
+    rows = {"exact": [], "thesis": []}
+    missed = {"exact": 0, "thesis": 0}
+    extra = {"exact": 0, "thesis": 0}
+    for i in range(n):
+        lens = 16 if i % 2 == 0 else 50
+        cam = cams[lens]
+        pose = random_pose(rng, cam, distance=(1.0, 10.0) if lens == 16 else (4.0, 20.0))
+        lighting = ("dim", "normal", "saturated")[i % 3]
+        pol = "positive" if (i // 2) % 2 == 0 else "negative"
+        bg = photos[i % len(photos)] if photos and i % 4 != 3 else 0.5
+        img = render_frame(cam, pose, polarities=pol, lighting=lighting, blur=rng.uniform(0, 1),
+                           noise=rng.uniform(0, 3), background=bg, rng=rng)
+        h_rows = float(target_outline(cam, pose)["bar_heights"].min())
+        for method in ("exact", "thesis"):
+            obs = detect_targets(img, cam, method=method)
+            match = [o for o in obs if abs(o.beta - pose.beta) < 0.02 and abs(o.distance / pose.distance - 1) < 0.2]
+            extra[method] += len(obs) - len(match[:1])
+            if not match:
+                missed[method] += 1
+                continue
+            o = match[0]
+            sd = o.sigma
+            rows[method].append((100 * abs(o.distance - pose.distance) / pose.distance,
+                                 math.degrees(abs(o.alpha - pose.alpha)), h_rows,
+                                 abs(o.distance - pose.distance) / max(sd[0], 1e-12),
+                                 abs(o.alpha - pose.alpha) / max(sd[2], 1e-12), lighting))
+    out = {"samples": n}
+    for method, r in rows.items():
+        a = np.array([x[:5] for x in r], float)
+        if a.size == 0:
+            out[method] = {"detection_rate": 0.0}
+            continue
+        big = a[:, 2] >= 60
+        out[method] = {
+            "detection_rate": len(r) / n, "missed": missed[method], "false_detections": extra[method],
+            "d_error_pct_mean": float(a[:, 0].mean()), "d_error_pct_max": float(a[:, 0].max()),
+            "alpha_error_deg_mean": float(a[:, 1].mean()), "alpha_error_deg_max": float(a[:, 1].max()),
+            "alpha_error_deg_max_60rows": float(a[big, 1].max()) if big.any() else None,
+            "alpha_error_deg_mean_60rows": float(a[big, 1].mean()) if big.any() else None,
+            "within_3sigma_d": float((a[:, 3] <= 3).mean()), "within_3sigma_alpha": float((a[:, 4] <= 3).mean()),
+            "by_lighting": {lt: {"d_error_pct_max": float(max(x[0] for x in r if x[5] == lt)),
+                                 "alpha_error_deg_mean": float(np.mean([x[1] for x in r if x[5] == lt]))}
+                            for lt in ("dim", "normal", "saturated") if any(x[5] == lt for x in r)},
+        }
+    return out
+
+
+def false_positives(rng) -> dict:
+    from localizer import Camera, detect_targets
+    from localizer.synthetic import adversarial_frames, expose, real_photos
+
+    cam = Camera.thesis(16.0)
+    frames = dict(adversarial_frames(cam, rng))
+    for name, refl in real_photos(cam).items():
+        for lighting in ("dim", "normal", "saturated"):
+            frames[f"photo:{name}:{lighting}"] = expose(refl, lighting, 0.5, 2.0, rng)
+    res = {}
+    for method in ("exact", "thesis"):
+        res[method] = sum(len(detect_targets(f, cam, method=method)) for f in frames.values())
+    res["frames"] = len(frames)
+    return res
+
+
+def format_table(r: dict) -> str:
+    s = r["speed"]
+    lines = [f"machine: {r['machine'].get('cpu_model')} ({r['machine'].get('cpu_count')} cpus), python "
+             f"{r['machine'].get('python')}",
+             f"speed, 512x480, median ms/frame over {s['frames']} frames (found: {s['found']}):"]
+    for k, v in s.items():
+        if k.endswith("_ms"):
+            lines.append(f"  {k[:-3]:<20} {v:8.3f}")
+    lines.append("time vs resolution (ms/frame):")
+    for row in r["resolution"]:
+        lines.append("  " + ", ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()))
+    lines.append("time vs number of targets (512x480):")
+    for row in r["targets"]:
+        lines.append(f"  {row['targets']} targets: {row['localizer_exact_ms']:.3f} ms (found {row['found_mean']:.2f})")
+    acc = r["accuracy"]
+    lines.append(f"accuracy over the envelope ({acc['samples']} frames):")
+    for m in ("exact", "thesis"):
+        a = acc[m]
+        lines.append(f"  {m}: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                                            for k, v in a.items() if k != "by_lighting"))
+        if "by_lighting" in a:
+            lines.append(f"    by lighting: {a['by_lighting']}")
+    lines.append(f"false detections on target-free frames: {r['false_positives']}")
+    return "\n".join(lines)

@@ -1,0 +1,1 @@
+"""Subcommands of the ``agvsim`` command (see :mod:`agvsim.cli`)."""

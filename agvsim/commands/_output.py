@@ -1,0 +1,44 @@
+"""Output conventions shared by the subcommands.
+
+With ``--json`` a command prints exactly one JSON object on stdout; every
+progress bar and log line goes to stderr.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+
+def _clean(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, np.generic):
+        return _clean(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def emit_json(obj: dict[str, Any]) -> None:
+    """Print ``obj`` as one JSON object on stdout (NaN/inf become null)."""
+    json.dump(_clean(obj), sys.stdout, indent=2, sort_keys=False)
+    sys.stdout.write("\n")
+    sys.stdout.flush()
+
+
+def log(message: str) -> None:
+    """A human-readable line on stderr."""
+    print(message, file=sys.stderr, flush=True)
+
+
+def add_json_flag(parser: Any) -> None:
+    parser.add_argument("--json", action="store_true",
+                        help="print exactly one JSON object on stdout (logs go to stderr)")

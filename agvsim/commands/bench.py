@@ -1,0 +1,68 @@
+"""``agvsim bench TARGET``: performance benchmarks (results go to BENCHMARKS.md).
+
+Each benchmark lives in :mod:`agvsim.bench.<name>` and exposes
+``add_arguments(parser)`` and ``run(args) -> dict`` (the JSON figures) and
+``format_table(result) -> str`` for the human-readable report.
+"""
+from __future__ import annotations
+
+import importlib
+import platform
+
+from agvsim.commands._output import add_json_flag, emit_json
+
+#: name -> one-line help
+BENCHMARKS: dict[str, str] = {
+    "sim": "physics + odometry steps per second on one core (no rendering)",
+    "localizer": "localizer ms per frame, against ArUco+solvePnP and AprilTag 3",
+}
+
+
+def machine_info() -> dict[str, object]:
+    import os
+
+    info: dict[str, object] = {
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "processor": platform.processor() or None,
+        "cpu_count": os.cpu_count(),
+    }
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    info["cpu_model"] = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return info
+
+
+def register(sub) -> None:
+    parser = sub.add_parser("bench", help="run a performance benchmark",
+                            description=__doc__.splitlines()[0])
+    bench_sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    for name, help_text in BENCHMARKS.items():
+        try:
+            module = importlib.import_module(f"agvsim.bench.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"agvsim.bench.{name}":
+                continue
+            raise
+        p = bench_sub.add_parser(name, help=help_text, description=help_text)
+        module.add_arguments(p)
+        add_json_flag(p)
+        p.set_defaults(func=_make_runner(module))
+
+
+def _make_runner(module):
+    def run(args) -> int:
+        result = module.run(args)
+        result = {"machine": machine_info(), **result}
+        if args.json:
+            emit_json(result)
+        else:
+            print(module.format_table(result))
+        return 0
+
+    return run

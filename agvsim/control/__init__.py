@@ -1,0 +1,4 @@
+"""Path following for the AGV."""
+from agvsim.control.pure_pursuit import FollowerParams, PurePursuit, RoutePath
+
+__all__ = ["FollowerParams", "PurePursuit", "RoutePath"]

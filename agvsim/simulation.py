@@ -1,0 +1,135 @@
+"""The simulated world stepped at a fixed physics rate: pymunk chassis,
+encoders and dead reckoning.
+
+Control steps are a whole number of physics steps (default 100 Hz physics,
+10 Hz control). Nothing here renders.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agvsim.physics import build_space
+from agvsim.vehicle.dynamics import DiffDriveVehicle, VehicleParams
+from agvsim.vehicle.encoders import EncoderModel, OdometryErrorModel
+from agvsim.vehicle.odometry import DeadReckoning, OdometryIncrement, arc_chord_factor
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Rates, vehicle and odometry of a simulation run."""
+
+    physics_rate: float = 100.0  # Hz
+    control_rate: float = 10.0  # Hz; physics_rate / control_rate must be a whole number
+    vehicle: VehicleParams = field(default_factory=VehicleParams)
+    odometry: OdometryErrorModel = field(default_factory=lambda: OdometryErrorModel.preset("typical"))
+
+    def __post_init__(self) -> None:
+        for name in ("physics_rate", "control_rate"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or value <= 0:
+                raise ValueError(f"SimConfig.{name} must be a positive rate in Hz, got {value!r}")
+        ratio = self.physics_rate / self.control_rate
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(
+                f"SimConfig: physics_rate ({self.physics_rate} Hz) must be a whole multiple of "
+                f"control_rate ({self.control_rate} Hz)")
+        if isinstance(self.odometry, str):
+            object.__setattr__(self, "odometry", OdometryErrorModel.preset(self.odometry))
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control step."""
+        return int(round(self.physics_rate / self.control_rate))
+
+    @property
+    def physics_dt(self) -> float:
+        return 1.0 / self.physics_rate  # s
+
+    @property
+    def control_dt(self) -> float:
+        return 1.0 / self.control_rate  # s
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """What one control step produced.
+
+    Attributes:
+        odometry: the (Δs, Δθ) increment and dead-reckoned pose.
+        contacts: ids of walls/obstacles touched during the step.
+        collided: a contact began during the step.
+    """
+
+    odometry: OdometryIncrement
+    contacts: frozenset[str]
+    collided: bool
+
+
+class Simulation:
+    """A vehicle on a map: physics, encoders, dead reckoning.
+
+    Args:
+        world_map: an :class:`agvsim.world.map.Map`.
+        start_pose: true (and dead-reckoning) start pose (x m, y m, θ rad).
+        config: rates, vehicle, odometry error model.
+        rng: the run's generator (odometry noise).
+    """
+
+    def __init__(self, world_map, start_pose: tuple[float, float, float],
+                 config: SimConfig, rng: np.random.Generator) -> None:
+        self.map = world_map
+        self.config = config
+        self.space, self.contacts = build_space(world_map)
+        self.vehicle = DiffDriveVehicle(self.space, start_pose, config.vehicle, self.contacts)
+        p = config.vehicle
+        self.encoders = EncoderModel(p.wheel_radius, p.track_width, config.odometry, rng)
+        self.odometry = DeadReckoning(start_pose, p.wheel_radius, p.track_width,
+                                      self.encoders.counts_per_rad, self.encoders.read())
+        self.time = 0.0  # s
+        self.distance = 0.0  # m, true path length of the chassis centre
+        self.steps = 0  # physics steps taken
+
+    @property
+    def true_pose(self) -> tuple[float, float, float]:
+        """Ground-truth pose; for rendering, rewards and evaluation only."""
+        return self.vehicle.pose
+
+    @property
+    def odometry_pose(self) -> tuple[float, float, float]:
+        return self.odometry.pose
+
+    def step(self, v: float, omega: float) -> StepResult:
+        """Drive with the command (v m/s, ω rad/s) for one control step."""
+        if not (math.isfinite(v) and math.isfinite(omega)):
+            raise ValueError(f"command must be finite, got v={v!r}, omega={omega!r}")
+        dt = self.config.physics_dt
+        vehicle = self.vehicle
+        body = vehicle.body
+        encoders = self.encoders
+        odometry = self.odometry
+        contacts = self.contacts
+        events_before = contacts.events
+        contacts.reset_window()
+        space_step = self.space.step
+        for _ in range(self.config.substeps):
+            vehicle.apply(v, omega, dt)
+            pos0 = body.position
+            a0 = body.angle
+            space_step(dt)
+            pos1 = body.position
+            a1 = body.angle
+            dtheta = a1 - a0
+            half = 0.5 * dtheta
+            mid = a0 + half
+            chord = (pos1.x - pos0.x) * math.cos(mid) + (pos1.y - pos0.y) * math.sin(mid)
+            ds = chord / arc_chord_factor(half)
+            encoders.advance(ds, dtheta, contacts.in_contact, vehicle.wheel_speeds(), dt)
+            odometry.update(encoders.read())
+            self.distance += abs(ds)
+        self.steps += self.config.substeps
+        self.time += self.config.control_dt
+        return StepResult(odometry.take_increment(), frozenset(contacts.since_reset),
+                          contacts.events > events_before)

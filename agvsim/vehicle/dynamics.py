@@ -1,0 +1,158 @@
+"""Differential-drive AGV dynamics in pymunk (top-down, no gravity).
+
+The model follows pymunk's ``examples/tank.py``: a kinematic *control body*
+carries the commanded velocity, and two joints tie the dynamic chassis to it
+with bounded force. A :class:`pymunk.PivotJoint` with ``max_bias = 0``
+corrects only velocity (no position), so it acts as tyre friction: it drives
+the chassis towards the commanded forward speed and its sideways speed
+towards zero, with at most the traction force ``mu * m * g``. A
+:class:`pymunk.GearJoint` does the same for the yaw rate. Walls and obstacles
+are static shapes the chassis collides with.
+
+Frames and units: map frame x east, y north (m); heading θ counter-clockwise
+from +x (rad); forward speed v (m/s) along the heading; yaw rate ω (rad/s).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import pymunk
+
+from agvsim.physics import COLLISION_VEHICLE, ContactMonitor
+
+GRAVITY = 9.81  # m/s^2
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Physical and control limits of the AGV (true values, not nominal ones)."""
+
+    length: float = 1.0  # m, chassis along the heading
+    width: float = 0.7  # m, chassis across the heading
+    mass: float = 200.0  # kg
+    max_speed: float = 1.5  # m/s, forward or reverse, and per wheel
+    max_yaw_rate: float = 1.5  # rad/s
+    max_accel: float = 1.0  # m/s^2, forward acceleration limit
+    max_yaw_accel: float = 3.0  # rad/s^2
+    wheel_radius: float = 0.1  # m, nominal drive-wheel radius
+    track_width: float = 0.6  # m, nominal distance between the drive wheels
+    traction: float = 0.8  # tyre friction coefficient (dimensionless)
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not math.isfinite(value) or value <= 0:
+                raise ValueError(f"VehicleParams.{name} must be a positive finite number, got {value!r}")
+        if self.track_width >= self.width + 0.2:
+            raise ValueError(f"VehicleParams.track_width ({self.track_width} m) must fit the chassis width ({self.width} m)")
+
+    def clip_command(self, v: float, omega: float) -> tuple[float, float]:
+        """Clip (v m/s, ω rad/s) to the speed limits, then scale both so that
+        neither wheel exceeds ``max_speed`` (keeps the path curvature)."""
+        v = min(max(v, -self.max_speed), self.max_speed)
+        omega = min(max(omega, -self.max_yaw_rate), self.max_yaw_rate)
+        wheel = abs(v) + abs(omega) * 0.5 * self.track_width
+        if wheel > self.max_speed:
+            scale = self.max_speed / wheel
+            v *= scale
+            omega *= scale
+        return v, omega
+
+
+class DiffDriveVehicle:
+    """A pymunk chassis driven by (v, ω) commands with acceleration limits.
+
+    Args:
+        space: the pymunk space holding the static world (see
+            :func:`agvsim.physics.build_space`).
+        pose: initial true pose (x m, y m, θ rad).
+        params: vehicle limits and geometry.
+        contacts: monitor that records the chassis's contacts.
+
+    The true pose (:attr:`pose`) is ground truth: rendering, rewards and
+    evaluation may read it; controllers and estimators must not.
+    """
+
+    def __init__(self, space: pymunk.Space, pose: tuple[float, float, float],
+                 params: VehicleParams, contacts: ContactMonitor) -> None:
+        self.params = params
+        self.space = space
+        self.contacts = contacts
+        x, y, theta = (float(p) for p in pose)
+        for name, value in (("x", x), ("y", y), ("theta", theta)):
+            if not math.isfinite(value):
+                raise ValueError(f"initial pose {name} must be finite, got {value!r}")
+        moment = pymunk.moment_for_box(params.mass, (params.length, params.width))
+        self.body = pymunk.Body(params.mass, moment)
+        self.body.position = (x, y)
+        self.body.angle = theta
+        self.shape = pymunk.Poly.create_box(self.body, (params.length, params.width), radius=0.0)
+        self.shape.collision_type = COLLISION_VEHICLE
+        self.shape.friction = 0.3
+        self.shape.elasticity = 0.0
+        self.control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self.control.position = (x, y)
+        self.control.angle = theta
+        traction_force = params.traction * params.mass * GRAVITY  # N
+        pivot = pymunk.PivotJoint(self.control, self.body, (0.0, 0.0), (0.0, 0.0))
+        pivot.max_bias = 0.0  # velocity correction only: tyre friction
+        pivot.max_force = traction_force
+        gear = pymunk.GearJoint(self.control, self.body, 0.0, 1.0)
+        gear.error_bias = 0.0
+        gear.max_bias = 0.0
+        gear.max_force = traction_force * 0.5 * params.track_width * 4.0  # N m
+        space.add(self.body, self.shape, self.control, pivot, gear)
+        self._v_cmd = 0.0  # m/s, slew-limited command in force
+        self._w_cmd = 0.0  # rad/s
+
+    # -- state -------------------------------------------------------------
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """True pose (x m, y m, θ rad), θ unwrapped (continuous)."""
+        p = self.body.position
+        return (p.x, p.y, self.body.angle)
+
+    @property
+    def velocity(self) -> tuple[float, float]:
+        """True (forward speed m/s, yaw rate rad/s) of the chassis."""
+        vel = self.body.velocity
+        angle = self.body.angle
+        return (vel.x * math.cos(angle) + vel.y * math.sin(angle), self.body.angular_velocity)
+
+    @property
+    def commanded(self) -> tuple[float, float]:
+        """The slew-limited (v m/s, ω rad/s) the motors are currently tracking."""
+        return (self._v_cmd, self._w_cmd)
+
+    def wheel_speeds(self) -> tuple[float, float]:
+        """Commanded rim speeds (left, right) in m/s of the drive wheels."""
+        half = 0.5 * self.params.track_width
+        return (self._v_cmd - self._w_cmd * half, self._v_cmd + self._w_cmd * half)
+
+    # -- actuation -----------------------------------------------------------
+    def apply(self, v: float, omega: float, dt: float) -> None:
+        """Track the command (v m/s, ω rad/s) for one physics step of ``dt`` s.
+
+        The command is clipped to the speed limits and slewed at the
+        acceleration limits; the control body then carries it.
+        """
+        p = self.params
+        v, omega = p.clip_command(v, omega)
+        dv = p.max_accel * dt
+        dw = p.max_yaw_accel * dt
+        self._v_cmd += min(max(v - self._v_cmd, -dv), dv)
+        self._w_cmd += min(max(omega - self._w_cmd, -dw), dw)
+        # pymunk integrates positions with the velocities solved in the previous
+        # step, so the velocity set now moves the chassis during the *next*
+        # step. Aim it along that step's mid heading (the angle after this
+        # step plus half the next turn): the chassis then moves on the chord of
+        # the arc that dead reckoning integrates, and ideal odometry is exact.
+        angle = self.body.angle + (self.body.angular_velocity + 0.5 * self._w_cmd) * dt
+        self.control.velocity = (self._v_cmd * math.cos(angle), self._v_cmd * math.sin(angle))
+        self.control.angular_velocity = self._w_cmd
+
+    def stop(self) -> None:
+        """Zero the command at once (an emergency stop, no slew)."""
+        self._v_cmd = self._w_cmd = 0.0
+        self.control.velocity = (0.0, 0.0)
+        self.control.angular_velocity = 0.0

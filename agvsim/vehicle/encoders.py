@@ -1,0 +1,173 @@
+"""Wheel encoders and their error model.
+
+The encoders read the *true* wheel motion. The true vehicle differs from its
+nominal parameters (Borenstein's UMBmark systematic errors), its wheels slip
+a little at random, and they spin against obstacles; the counts are
+quantized. Dead reckoning (:mod:`agvsim.vehicle.odometry`) then integrates
+the counts with the *nominal* parameters, so it drifts.
+
+Systematic errors (UMBmark, Borenstein & Feng 1996):
+    E_d = D_R / D_L   ratio of the true right and left wheel diameters, whose
+                      mean equals the nominal diameter, so
+                      D_R = 2 E_d / (E_d + 1) D,  D_L = 2 / (E_d + 1) D;
+    E_b = b_true / b_nominal   true over nominal wheelbase (track width).
+
+Random error: each wheel's arc length s over a physics step gets zero-mean
+Gaussian noise of variance ``wheel_noise**2 * |s|`` (m²), so the variance
+grows linearly with the distance the wheel rolls (a random walk).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+TWO_PI = 2.0 * math.pi
+_NOISE_BLOCK = 4096  # normals drawn from the generator at a time
+
+
+@dataclass(frozen=True)
+class OdometryErrorModel:
+    """What makes dead reckoning drift; each part switchable.
+
+    Attributes:
+        wheel_noise: per-wheel random arc error, σ = wheel_noise * sqrt(|s|)
+            with s the wheel's arc length (m^(1/2)); 0 disables it.
+        ed: UMBmark E_d = D_R / D_L (dimensionless); 1 disables it.
+        eb: UMBmark E_b = b_true / b_nominal (dimensionless); 1 disables it.
+        ticks_per_rev: encoder counts per wheel revolution; 0 disables
+            quantization (the counts are then real numbers).
+        slip_in_contact: share (0..1) of the commanded wheel motion that the
+            wheels spin through while the chassis is in contact with an
+            obstacle (pushing against a wall); 0 disables it.
+    """
+
+    wheel_noise: float = 0.0  # m^(1/2)
+    ed: float = 1.0  # dimensionless
+    eb: float = 1.0  # dimensionless
+    ticks_per_rev: int = 0  # counts / rev
+    slip_in_contact: float = 0.0  # share of commanded wheel motion
+
+    def __post_init__(self) -> None:
+        checks = {
+            "wheel_noise": self.wheel_noise >= 0,
+            "ed": self.ed > 0,
+            "eb": self.eb > 0,
+            "slip_in_contact": 0.0 <= self.slip_in_contact <= 1.0,
+        }
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not math.isfinite(value) or not ok:
+                raise ValueError(f"OdometryErrorModel.{name} out of range: {value!r}")
+        if not isinstance(self.ticks_per_rev, (int, np.integer)) or self.ticks_per_rev < 0:
+            raise ValueError(f"OdometryErrorModel.ticks_per_rev must be an integer >= 0, got {self.ticks_per_rev!r}")
+
+    @classmethod
+    def preset(cls, name: str) -> "OdometryErrorModel":
+        """``ideal`` (no error), ``typical`` (a well-kept AGV, about 1 % of
+        distance) or ``worn`` (uneven tyres, worn encoders, several %)."""
+        presets = {
+            "ideal": cls(),
+            "typical": cls(wheel_noise=0.004, ed=1.002, eb=1.005, ticks_per_rev=4096, slip_in_contact=1.0),
+            "worn": cls(wheel_noise=0.010, ed=1.008, eb=1.02, ticks_per_rev=1024, slip_in_contact=1.0),
+        }
+        try:
+            return presets[name]
+        except KeyError:
+            raise ValueError(f"unknown odometry preset {name!r}; expected one of {sorted(presets)}") from None
+
+    def without(self, *parts: str) -> "OdometryErrorModel":
+        """A copy with the named parts switched off (``noise``, ``systematic``,
+        ``quantization``, ``slip``)."""
+        off = {"noise": {"wheel_noise": 0.0}, "systematic": {"ed": 1.0, "eb": 1.0},
+               "quantization": {"ticks_per_rev": 0}, "slip": {"slip_in_contact": 0.0}}
+        changes: dict[str, float] = {}
+        for part in parts:
+            if part not in off:
+                raise ValueError(f"unknown odometry error part {part!r}; expected one of {sorted(off)}")
+            changes.update(off[part])
+        return replace(self, **changes)
+
+
+PRESETS: tuple[str, ...] = ("ideal", "typical", "worn")
+
+
+@dataclass(frozen=True)
+class WheelTicks:
+    """Cumulative encoder counts (left, right); real numbers when unquantized."""
+
+    left: float
+    right: float
+
+
+class EncoderModel:
+    """Turns the chassis's true motion into wheel encoder counts.
+
+    Args:
+        wheel_radius: nominal wheel radius r (m).
+        track_width: nominal wheelbase b (m).
+        errors: the error model.
+        rng: the run's generator; noise is drawn from it in blocks.
+    """
+
+    def __init__(self, wheel_radius: float, track_width: float,
+                 errors: OdometryErrorModel, rng: np.random.Generator) -> None:
+        self.errors = errors
+        self.rng = rng
+        self.ticks_per_rev = errors.ticks_per_rev
+        # counts per metre of rim for the unquantized case uses a nominal 1 count/rad
+        self._counts_per_rad = errors.ticks_per_rev / TWO_PI if errors.ticks_per_rev else 1.0
+        self._r_right = wheel_radius * 2.0 * errors.ed / (errors.ed + 1.0)  # m, true
+        self._r_left = wheel_radius * 2.0 / (errors.ed + 1.0)  # m, true
+        self._half_track = 0.5 * track_width * errors.eb  # m, true
+        self._noise = errors.wheel_noise
+        self._slip = errors.slip_in_contact
+        self._phi_left = 0.0  # rad, true cumulative wheel rotation
+        self._phi_right = 0.0
+        self._block = np.empty(0)
+        self._next = 0
+
+    @property
+    def counts_per_rad(self) -> float:
+        """Encoder counts per radian of wheel rotation."""
+        return self._counts_per_rad
+
+    def _normal(self) -> float:
+        if self._next >= self._block.shape[0]:
+            self._block = self.rng.standard_normal(_NOISE_BLOCK)
+            self._next = 0
+        value = self._block[self._next]
+        self._next += 1
+        return float(value)
+
+    def advance(self, ds: float, dtheta: float, in_contact: bool = False,
+                commanded: tuple[float, float] = (0.0, 0.0), dt: float = 0.0) -> None:
+        """Record one physics step of true chassis motion.
+
+        Args:
+            ds: true arc length travelled by the chassis centre (m).
+            dtheta: true heading change (rad).
+            in_contact: whether the chassis touches an obstacle.
+            commanded: commanded rim speeds (left, right) in m/s.
+            dt: step length (s), used with ``commanded`` for slip.
+        """
+        s_left = ds - dtheta * self._half_track
+        s_right = ds + dtheta * self._half_track
+        if in_contact and self._slip:
+            s_left += self._slip * (commanded[0] * dt - s_left)
+            s_right += self._slip * (commanded[1] * dt - s_right)
+        if self._noise:
+            s_left += self._noise * math.sqrt(abs(s_left)) * self._normal()
+            s_right += self._noise * math.sqrt(abs(s_right)) * self._normal()
+        self._phi_left += s_left / self._r_left
+        self._phi_right += s_right / self._r_right
+
+    def read(self) -> WheelTicks:
+        """Cumulative counts as the encoder interface reports them."""
+        left = self._phi_left * self._counts_per_rad
+        right = self._phi_right * self._counts_per_rad
+        if self.ticks_per_rev:
+            left = float(math.floor(left))
+            right = float(math.floor(right))
+        return WheelTicks(left, right)

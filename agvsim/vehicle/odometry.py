@@ -1,0 +1,94 @@
+"""Dead reckoning from wheel encoder counts with the *nominal* parameters.
+
+Integration is exact for a constant-curvature arc over each update
+(Δs along the arc, Δθ heading change)::
+
+    x += Δs * sinc(Δθ/2) * cos(θ + Δθ/2)
+    y += Δs * sinc(Δθ/2) * sin(θ + Δθ/2)
+    θ += Δθ
+
+with ``sinc(u) = sin(u)/u``, Δs = (s_R + s_L)/2 and Δθ = (s_R - s_L)/b.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from agvsim.vehicle.encoders import TWO_PI, WheelTicks
+
+
+def arc_chord_factor(half_angle: float) -> float:
+    """sin(u)/u, the chord-to-arc ratio of an arc turning 2u (rad)."""
+    if abs(half_angle) < 1e-4:
+        return 1.0 - half_angle * half_angle / 6.0
+    return math.sin(half_angle) / half_angle
+
+
+@dataclass(frozen=True)
+class OdometryIncrement:
+    """What a real AGV controller sees each control step.
+
+    Attributes:
+        ds: distance travelled along the path (m), negative when reversing.
+        dtheta: heading change (rad).
+        pose: integrated dead-reckoned pose (x m, y m, θ rad) after it.
+    """
+
+    ds: float
+    dtheta: float
+    pose: tuple[float, float, float]
+
+
+class DeadReckoning:
+    """Integrates encoder counts into a pose with the nominal wheel radius
+    and wheelbase.
+
+    Args:
+        pose: initial pose (x m, y m, θ rad), usually the known start station.
+        wheel_radius: nominal wheel radius (m).
+        track_width: nominal wheelbase (m).
+        counts_per_rad: encoder counts per radian of wheel rotation.
+        ticks: the encoder reading at start.
+    """
+
+    def __init__(self, pose: tuple[float, float, float], wheel_radius: float,
+                 track_width: float, counts_per_rad: float, ticks: WheelTicks) -> None:
+        self.x, self.y, self.theta = (float(p) for p in pose)
+        self._metres_per_count = wheel_radius / counts_per_rad
+        self._track = track_width
+        self._last = ticks
+        self._acc_ds = 0.0
+        self._acc_dtheta = 0.0
+        self.distance = 0.0  # m, total |Δs| integrated
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Dead-reckoned (x m, y m, θ rad), θ unwrapped."""
+        return (self.x, self.y, self.theta)
+
+    def update(self, ticks: WheelTicks) -> None:
+        """Integrate the counts since the previous reading."""
+        s_left = (ticks.left - self._last.left) * self._metres_per_count
+        s_right = (ticks.right - self._last.right) * self._metres_per_count
+        self._last = ticks
+        ds = 0.5 * (s_left + s_right)
+        dtheta = (s_right - s_left) / self._track
+        half = 0.5 * dtheta
+        chord = ds * arc_chord_factor(half)
+        heading = self.theta + half
+        self.x += chord * math.cos(heading)
+        self.y += chord * math.sin(heading)
+        self.theta += dtheta
+        self._acc_ds += ds
+        self._acc_dtheta += dtheta
+        self.distance += abs(ds)
+
+    def take_increment(self) -> OdometryIncrement:
+        """The (Δs, Δθ) accumulated since the last call, and the pose."""
+        inc = OdometryIncrement(self._acc_ds, self._acc_dtheta, self.pose)
+        self._acc_ds = 0.0
+        self._acc_dtheta = 0.0
+        return inc
+
+
+__all__ = ["DeadReckoning", "OdometryIncrement", "arc_chord_factor", "TWO_PI"]

@@ -1,0 +1,1 @@
+"""Gymnasium adapters over agvsim and localizer (see issue: Gymnasium environments)."""

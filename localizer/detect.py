@@ -1,0 +1,127 @@
+"""``detect_targets``: the whole pipeline of thesis Fig. 4.6 on one frame."""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from localizer.camera import Camera
+from localizer.edges import subpixel_edges, thesis_edges
+from localizer.observation import ImageMeasurements, TargetObservation
+from localizer.params import METHODS, DetectionStats, DetectorParams
+from localizer.pose import exact_pose, thesis_pose
+from localizer.recognize import find_stacks, verify_stack
+from localizer.target import TargetSpec
+
+#: an exact fit whose normalised residual exceeds this is not a target
+MAX_FIT_RMS = 30.0
+
+
+def as_gray(image, camera: Camera) -> np.ndarray:
+    """Validate a frame and return it as a C-contiguous 2-D uint8 array.
+
+    Raises ``ValueError`` naming what was expected: a non-empty uint8 array of
+    shape ``(camera.height, camera.width)`` or ``(..., 3|4)`` channels (BGR/BGRA).
+    """
+    if not isinstance(image, np.ndarray):
+        raise ValueError(f"expected a numpy uint8 image array, got {type(image).__name__}")
+    if image.size == 0:
+        raise ValueError(f"expected a non-empty uint8 image of shape {camera.shape}, got shape {image.shape}")
+    if image.dtype != np.uint8:
+        extra = ""
+        if np.issubdtype(image.dtype, np.floating) and not np.isfinite(image).all():
+            extra = " with non-finite values"
+        raise ValueError(f"expected a uint8 image (grey levels 0..255), got dtype {image.dtype}{extra}")
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        import cv2
+
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    elif image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if image.ndim != 2:
+        raise ValueError(f"expected a 2-D grey or 3-channel image, got shape {image.shape}")
+    if image.shape != camera.shape:
+        raise ValueError(f"image shape {image.shape} does not match the camera's (height, width) = {camera.shape}")
+    return np.ascontiguousarray(image)
+
+
+def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), method: str = "exact", *,
+                   stats: DetectionStats | None = None, **params) -> list[TargetObservation]:
+    """Find every two-bar target in ``image`` and recover the camera pose to each.
+
+    Args:
+        image: ``(camera.height, camera.width)`` uint8 grey image (3-channel BGR is converted).
+        camera: intrinsics; must match the image size.
+        target: target geometry (m).
+        method: ``"thesis"`` -- the thesis pipeline (half-pixel edges, eqs 4.3-4.13);
+            ``"exact"`` -- subpixel edges and a perspective-exact least-squares pose.
+        stats: optional :class:`DetectionStats` filled in for this frame.
+        **params: any field of :class:`DetectorParams` (thesis defaults).
+    Returns:
+        A list of :class:`TargetObservation`, top to bottom, left to right.
+    """
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if not isinstance(camera, Camera):
+        raise ValueError(f"camera must be a localizer.Camera, got {type(camera).__name__}")
+    if not isinstance(target, TargetSpec):
+        raise ValueError(f"target must be a localizer.TargetSpec, got {type(target).__name__}")
+    img = as_gray(image, camera)
+    p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
+    st = stats if stats is not None else DetectionStats()
+    out: list[TargetObservation] = []
+    stacks = find_stacks(img, camera, target, p, st)
+    verified = []
+    for cand in stacks:
+        v = verify_stack(img, camera, target, cand, p, st)
+        if v is None:
+            continue
+        verified.append(v)
+        try:
+            obs = _measure(img, camera, target, v, method, p)
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
+            st.reject("pose")
+            continue
+        if obs is None:
+            st.reject("pose")
+            continue
+        out.append(obs)
+    st.accepted += len(out)
+    st.seconds += time.perf_counter() - t0
+    if p.debug_dir:
+        from localizer.annotate import write_debug_images
+
+        write_debug_images(p.debug_dir, img, camera, p, stacks, verified, out)
+    return out
+
+
+def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,
+             p: DetectorParams) -> TargetObservation | None:
+    if method == "thesis":
+        m = thesis_edges(img, camera, v, int(p.edge_window))
+        est = thesis_pose(m, camera, target)
+    else:
+        m = subpixel_edges(img, camera, v)
+        clipped = (v.bright >= 250.0) or (v.dark <= 5.0)
+        floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.1)
+        est = exact_pose(m, camera, target, v.positive, floor)
+        if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
+                and est.rms < MAX_FIT_RMS and np.all(np.isfinite(est.covariance))):
+            return None
+    h1, h2 = (float(x) for x in m.bar_heights)
+    ex = tuple(float(x) for x in m.edges_x)
+    meas = ImageMeasurements(
+        edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
+        delta_y=0.5 * (h1 + h2),
+        centre=(0.25 * sum(ex), float(0.25 * (np.sum(m.top_y) + np.sum(m.bottom_y)))),
+        bar_cx=tuple(float(x) for x in m.bar_cx), top_y=tuple(float(x) for x in m.top_y),
+        bottom_y=tuple(float(x) for x in m.bottom_y), rows=(int(v.rows[0]), int(v.rows[-1])),
+        n_rows=v.n_rows, dark=float(v.dark), bright=float(v.bright))
+    return TargetObservation(
+        distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),
+        x=float(est.x), height=float(est.height), polarity=v.polarity, method=method,
+        covariance=np.asarray(est.covariance, float), measurements=meas,
+        alpha_candidates=tuple(float(a) for a in est.alpha_candidates),
+        alpha_ambiguous=bool(est.ambiguous), edge_bias=float(est.edge_bias), fit_rms=float(est.rms))

@@ -1,0 +1,95 @@
+"""User parameters of the detector (frozen), kept apart from per-frame statistics.
+
+Defaults are the thesis's values (§4.4-4.6) where it gives one; grey levels
+are 8-bit levels, lengths are pixels or rows at the frame's own resolution
+unless said otherwise. ``None`` means "scale the thesis value (given for
+480 rows) to the frame height".
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+
+METHODS = ("thesis", "exact")
+
+
+@dataclass(frozen=True)
+class DetectorParams:
+    # --- search (§4.4.1)
+    coarse_step: int | None = None  # rows between coarse scan lines; thesis N = 10 at 480 rows
+    # --- thresholding (§4.4.2)
+    threshold_window: int | None = None  # px, local midway-threshold window; 33 at 512 columns
+    global_threshold: float = 128.0  # grey level used when a line has little contrast
+    local_contrast: float = 30.0  # grey levels within `contrast_window` px that switch to midway threshold
+    contrast_window: int = 5  # px, thesis "area of five pixels"
+    # --- feature detection (§4.5.1)
+    min_bar_px: int = 3  # px, shortest run accepted as a bar or gap
+    width_tolerance: float = 0.35  # relative difference allowed between the three runs
+    width_slack: float = 1.5  # px added to the allowed difference (quantisation)
+    min_margin_ratio: float = 0.25  # side margin run / mean run (thesis margin s = b/2)
+    reject_periodic: bool = True  # drop triples inside 5+ equal runs (chessboards, gratings)
+    periodic_tolerance: float = 0.2  # relative tolerance of "equal" for that test (margins are b/2)
+    # --- verification (§4.5.2)
+    min_rows: int | None = None  # thesis 15 scan lines at 480 rows
+    max_row_gap: int = 1  # rows a stack may miss and stay connected (thesis: 0; 1 survives noise)
+    aspect_tolerance: float = 0.35  # relative slack on the height/width ratio
+    max_alpha: float = math.radians(75.0)  # rad, largest |alpha| the aspect test allows
+    uniformity: float = 20.0  # grey levels: max spread of non-boundary pixels in a segment
+    min_contrast: float = 100.0  # grey levels between adjacent segments (thesis)
+    min_contrast_ratio: float = 0.5  # or: dark mean <= (1 - ratio) * bright mean (dim light)
+    check_margins: bool = True  # the blank margin above and below the bars must be present
+    # --- edges (§4.6)
+    edge_window: int = 9  # px, thesis neighbourhood of a rough edge
+    # --- exact pose covariance
+    edge_sigma_floor: float = 0.03  # px, model error added to every averaged edge position
+    # --- misc
+    max_targets: int = 32
+    debug_dir: str | None = None  # write intermediate images here (slow)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in ("debug_dir",) or v is None or isinstance(v, bool):
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise ValueError(f"DetectorParams.{f.name} must be a finite non-negative number, got {v!r}")
+        if self.contrast_window < 2:
+            raise ValueError("DetectorParams.contrast_window must be >= 2 px")
+        if self.edge_window < 3:
+            raise ValueError("DetectorParams.edge_window must be >= 3 px")
+        if not 0 < self.max_alpha < math.pi / 2:
+            raise ValueError("DetectorParams.max_alpha must be in (0, pi/2) rad")
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> "DetectorParams":
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(kwargs) - names)
+        if unknown:
+            raise ValueError(f"unknown detector parameter(s) {unknown}; expected some of {sorted(names)}")
+        return cls(**kwargs)
+
+    def resolved(self, height: int, width: int | None = None) -> "DetectorParams":
+        """Copy with the resolution-dependent defaults filled in for ``height`` rows
+        (and ``width`` columns, default ``height * 512 / 480``)."""
+        scale = height / 480.0
+        wscale = (width if width is not None else height * 512.0 / 480.0) / 512.0
+        return replace(self,
+                       coarse_step=self.coarse_step or max(1, round(10 * scale)),
+                       threshold_window=self.threshold_window or (2 * max(4, round(16 * wscale)) + 1),
+                       min_rows=self.min_rows or max(3, round(15 * scale)))
+
+
+@dataclass
+class DetectionStats:
+    """Per-frame statistics, filled in by :func:`localizer.detect_targets` when passed."""
+
+    rows_scanned: int = 0
+    runs: int = 0
+    seeds: int = 0
+    candidates: int = 0
+    rejected: dict = field(default_factory=dict)  # reason -> count
+    accepted: int = 0
+    seconds: float = 0.0
+
+    def reject(self, reason: str) -> None:
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1

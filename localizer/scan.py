@@ -1,0 +1,212 @@
+"""Line thresholding, modified run-length coding and triple search (thesis §4.4-4.5.1).
+
+Everything works on a whole batch of scan lines at once (a ``(k, W)`` uint8
+array): the coarse scan of §4.4.1 thresholds, codes and searches its
+``H / N`` lines with a fixed number of numpy calls, whatever the image holds.
+Per-call overhead of numpy (1-5 µs) dominates on arrays this small, so the
+functions here avoid per-line or per-run Python loops.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from localizer.params import DetectorParams
+
+
+def line_thresholds(lines: np.ndarray, p: DetectorParams) -> np.ndarray:
+    """Per-line threshold of §4.4.2, ``(k,)`` grey levels (a pixel is white when ``>=``).
+
+    The contrast over every ``contrast_window``-pixel stretch of a line is
+    computed; if its maximum reaches ``local_contrast`` the line is
+    thresholded midway between its brightest and darkest pixel, otherwise at
+    the global threshold.
+    """
+    import cv2
+
+    k = int(p.contrast_window) - 1
+    contrast = cv2.absdiff(lines[:, k:], lines[:, :-k]).max(axis=1)
+    hi = lines.max(axis=1).astype(np.int32)
+    lo = lines.min(axis=1).astype(np.int32)
+    mid = (hi + lo + 1) // 2
+    return np.where(contrast >= p.local_contrast, mid, int(np.ceil(p.global_threshold))).astype(np.uint8)
+
+
+def pixel_thresholds(lines: np.ndarray, p: DetectorParams, window: int) -> np.ndarray:
+    """Global plus local thresholds of §4.4.2, per pixel, ``(k, W)`` uint8.
+
+    The thesis takes one midway threshold per line. On a cluttered line that
+    level is set by whatever is brightest and darkest anywhere on the line, so
+    here the midway level is taken over a ``window``-pixel neighbourhood of
+    each pixel (running max / min, i.e. a 1-D dilation / erosion) wherever that
+    neighbourhood has at least ``local_contrast`` grey levels of contrast; in
+    flat stretches (the inside of a bar wider than the window) the line's own
+    thesis threshold (:func:`line_thresholds`) is used.
+    """
+    import cv2
+
+    kernel = np.ones((1, int(window)), np.uint8)
+    hi = cv2.dilate(lines, kernel, borderType=cv2.BORDER_REPLICATE)
+    lo = cv2.erode(lines, kernel, borderType=cv2.BORDER_REPLICATE)
+    contrast = hi - lo
+    mid = hi - (contrast >> 1)  # (hi + lo + 1) // 2 without overflow
+    flat = contrast < p.local_contrast
+    if flat.any():
+        mid[flat] = np.broadcast_to(line_thresholds(lines, p)[:, None], mid.shape)[flat]
+    return mid
+
+
+@dataclass(frozen=True)
+class Runs:
+    """Modified run-length code (g, l, y, x) of a batch of lines (§4.4.3).
+
+    All arrays are ``(R,)``, sorted by line then x. ``g``: True for white;
+    ``l``: run length (px); ``y``: image row; ``x``: column of the run's first
+    pixel; ``line``: index of the line within the batch.
+    """
+
+    g: np.ndarray
+    l: np.ndarray
+    y: np.ndarray
+    x: np.ndarray
+    line: np.ndarray
+
+
+def run_length_code(binary: np.ndarray, rows: np.ndarray, x_offset: int = 0) -> Runs:
+    """Run-length code a ``(k, W)`` boolean batch whose lines are image ``rows`` (``(k,)``).
+
+    One pass over the flattened batch: a run starts wherever a pixel differs
+    from its left neighbour or a line starts.
+    """
+    k, w = binary.shape
+    flatb = binary.ravel()
+    change = np.empty(k * w, dtype=bool)
+    change[0] = True
+    np.not_equal(flatb[1:], flatb[:-1], out=change[1:])
+    change[::w] = True
+    start = np.flatnonzero(change)
+    end = np.empty_like(start)
+    end[:-1] = start[1:]
+    end[-1] = k * w
+    line = start // w
+    x = start - line * w
+    # a run never crosses a line end: the next line's first pixel always starts a run
+    return Runs(g=flatb[start], l=end - start, y=np.asarray(rows)[line], x=x + x_offset, line=line)
+
+
+@dataclass(frozen=True)
+class Triples:
+    """Three consecutive near-equal runs (bar, gap, bar) found on scan lines.
+
+    ``(T,)`` arrays: ``y`` row, ``line`` batch line index, ``x`` ``(T, 4)`` run
+    boundaries (first pixel of bar 1, gap, bar 2, and one past bar 2),
+    ``positive`` True for black-white-black, ``margin`` ``(T, 2)`` lengths of
+    the runs either side.
+    """
+
+    y: np.ndarray
+    line: np.ndarray
+    x: np.ndarray
+    positive: np.ndarray
+    margin: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.y.size)
+
+
+_EMPTY = Triples(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int), np.zeros(0, bool),
+                 np.zeros((0, 2), int))
+
+
+def find_triples(runs: Runs, p: DetectorParams) -> Triples:
+    """Feature detection (§4.5.1): runs i, i+1, i+2 of one line, alternately
+    dark-light-dark (positive target) or light-dark-light (negative), near-equal
+    in length (``width_tolerance``, ``width_slack``), at least ``min_bar_px`` long,
+    with margin runs of at least ``min_margin_ratio`` times their mean on both sides.
+    With ``reject_periodic``, triples inside five or more equal runs (gratings,
+    chessboards) are dropped."""
+    l = runs.l
+    n = l.size
+    if n < 5:
+        return _EMPTY
+    longr = l >= p.min_bar_px
+    # first-bar index i in 1..n-4; runs i-1 .. i+3 on one line (lines are sorted)
+    i = np.flatnonzero(longr[1:-3] & longr[2:-2] & longr[3:-1]) + 1
+    if i.size == 0:
+        return _EMPTY
+    line = runs.line
+    i = i[line[i - 1] == line[i + 3]]
+    if i.size == 0:
+        return _EMPTY
+    l0, l1, l2 = l[i], l[i + 1], l[i + 2]
+    lmax = np.maximum(np.maximum(l0, l1), l2)
+    lmin = np.minimum(np.minimum(l0, l1), l2)
+    s = l0 + l1 + l2
+    ok = (lmax - lmin) <= p.width_tolerance * lmax + p.width_slack
+    ok &= 3.0 * np.minimum(l[i - 1], l[i + 3]) >= p.min_margin_ratio * s
+    i = i[ok]
+    if i.size == 0:
+        return _EMPTY
+    if p.reject_periodic:
+        m = (l[i] + l[i + 1] + l[i + 2]) / 3.0
+        tol = p.periodic_tolerance * m + 1.0
+        im2 = np.maximum(i - 2, 0)
+        ip4 = np.minimum(i + 4, n - 1)
+        li = line[i]
+        left = (line[im2] == li) & (i >= 2) & (np.abs(l[i - 1] - m) <= tol) & (np.abs(l[im2] - m) <= tol)
+        right = (line[ip4] == li) & (i + 4 < n) & (np.abs(l[i + 3] - m) <= tol) & (np.abs(l[ip4] - m) <= tol)
+        i = i[~(left | right)]
+        if i.size == 0:
+            return _EMPTY
+    x = runs.x
+    xb = np.stack([x[i], x[i + 1], x[i + 2], x[i + 2] + l[i + 2]], axis=1)
+    return Triples(y=runs.y[i], line=line[i], x=xb, positive=~runs.g[i],
+                   margin=np.stack([l[i - 1], l[i + 3]], axis=1))
+
+
+def scan_lines(image: np.ndarray, rows: np.ndarray, p: DetectorParams, window: int):
+    """Threshold (:func:`pixel_thresholds`), code and search image ``rows`` (``(k,)``).
+
+    Returns ``(triples, lines, n_runs)`` with ``lines`` the ``(k, W)`` grey lines.
+    """
+    lines = image[rows]
+    binary = lines >= pixel_thresholds(lines, p, window)
+    runs = run_length_code(binary, rows)
+    return find_triples(runs, p), lines, int(runs.l.size)
+
+
+def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
+    """Grey levels of every triple's segments on its own scan line, all triples at once.
+
+    For each triple, the mean and standard deviation (grey levels) of the
+    non-boundary pixels of its three runs (bar, gap, bar; up to 2 px at each
+    end are boundary, the thesis's 5-pixel edge transition) and the mean of the
+    ``max(1, b/4)`` margin pixels next to each outer edge. Computed from prefix
+    sums of the lines. Returns ``(mean (T, 3), std (T, 3), margin_mean (T, 2))``.
+    """
+    k, w = lines.shape
+    v = lines.astype(np.int64)
+    cs = np.zeros((k, w + 1), np.int64)
+    np.cumsum(v, axis=1, out=cs[:, 1:])
+    cs2 = np.zeros((k, w + 1), np.int64)
+    np.cumsum(v * v, axis=1, out=cs2[:, 1:])
+    xb = tri.x
+    a = xb[:, :3]
+    b = xb[:, 1:]
+    ln = b - a
+    m = np.minimum(2, (ln - 1) // 2)
+    a2 = a + m
+    b2 = b - m
+    li = tri.line[:, None]
+    cnt = (b2 - a2).astype(np.float64)
+    s1 = (cs[li, b2] - cs[li, a2]) / cnt
+    s2 = (cs2[li, b2] - cs2[li, a2]) / cnt
+    std = np.sqrt(np.maximum(s2 - s1 * s1, 0.0))
+    mw = np.maximum(1, ln.sum(axis=1) // 12)
+    x0 = np.maximum(xb[:, 0] - mw, 0)
+    x3 = np.minimum(xb[:, 3] + mw, w)
+    l0 = tri.line
+    left = (cs[l0, xb[:, 0]] - cs[l0, x0]) / np.maximum(xb[:, 0] - x0, 1)
+    right = (cs[l0, x3] - cs[l0, xb[:, 3]]) / np.maximum(x3 - xb[:, 3], 1)
+    return s1, std, np.stack([left, right], axis=1)

@@ -1,0 +1,66 @@
+"""Geometry of the thesis's two-bar target (thesis §3.4, Fig. 3.2).
+
+The target is planar and hangs vertically. Its *active area* is three
+equal vertical strips of width ``b``: bar, gap, bar (``W = 3b`` wide,
+``H = 2b`` tall). A margin ``s = b/2`` surrounds the active area so the
+bars never merge with the background. A *positive* target has black bars
+on white, a *negative* one white bars on black.
+
+All lengths are metres.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+Polarity = Literal["positive", "negative"]
+POLARITIES: tuple[str, ...] = ("positive", "negative")
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """Target geometry. ``TargetSpec()`` is the thesis target.
+
+    Attributes:
+        bar_width: width b of each bar and of the gap between them (m).
+        bar_height: height H of the bars (m); the thesis uses H = 2b.
+        margin: blank margin s around the active area (m); thesis s = b/2.
+    """
+
+    bar_width: float = 0.075  # m, b
+    bar_height: float = 0.150  # m, H = 2b
+    margin: float = 0.0375  # m, s = b/2
+
+    def __post_init__(self) -> None:
+        for name in ("bar_width", "bar_height", "margin"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"TargetSpec.{name} must be a finite number (m), got {value!r}")
+            if value < 0 or (value == 0 and name != "margin"):
+                raise ValueError(f"TargetSpec.{name} must be positive (m), got {value!r}")
+
+    @classmethod
+    def from_bar_width(cls, bar_width: float) -> "TargetSpec":
+        """The thesis proportions (H = 2b, s = b/2) scaled to ``bar_width`` (m)."""
+        return cls(bar_width=bar_width, bar_height=2.0 * bar_width, margin=0.5 * bar_width)
+
+    @property
+    def active_width(self) -> float:
+        """W = 3b, width of the active area (m)."""
+        return 3.0 * self.bar_width
+
+    @property
+    def active_height(self) -> float:
+        """Height of the active area (m), equal to the bar height H."""
+        return self.bar_height
+
+    @property
+    def outer_width(self) -> float:
+        """Width of the whole printed target including margins (m)."""
+        return self.active_width + 2.0 * self.margin
+
+    @property
+    def outer_height(self) -> float:
+        """Height of the whole printed target including margins (m)."""
+        return self.active_height + 2.0 * self.margin

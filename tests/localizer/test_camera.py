@@ -1,0 +1,58 @@
+import math
+
+import numpy as np
+import pytest
+
+from localizer import Camera
+
+
+def test_thesis_camera_intrinsics():
+    c = Camera.thesis(16.0)
+    assert c.width == 512 and c.height == 480
+    assert c.fx == pytest.approx(16 / 8.8 * 512)
+    assert c.fy == pytest.approx(16 / 6.6 * 480)
+    assert (c.cx, c.cy) == (256.0, 240.0)
+    # thesis §3.3.1: 16 mm lens covers about 30.8 x 23.3 degrees
+    assert math.degrees(2 * math.atan(256 / c.fx)) == pytest.approx(30.8, abs=0.2)
+    assert math.degrees(2 * math.atan(240 / c.fy)) == pytest.approx(23.3, abs=0.2)
+    np.testing.assert_allclose(c.K, [[c.fx, 0, 256], [0, c.fy, 240], [0, 0, 1]])
+
+
+def test_project_pinhole_and_distortion_roundtrip():
+    c = Camera.from_intrinsics(900, 910, 320, 240, 640, 480)
+    np.testing.assert_allclose(c.project([0.3, -0.2, 1.5]), [320 + 900 * 0.2, 240 - 910 * 0.2 / 1.5])
+    d = Camera.from_intrinsics(900, 910, 320, 240, 640, 480, dist=[-0.2, 0.05, 0.001, -0.001, 0.0])
+    pts = np.array([[0.3, 0.2, 1.0], [-0.25, 0.1, 2.0], [0.0, 0.0, 3.0]])
+    np.testing.assert_allclose(d.undistort_points(d.project(pts)), c.project(pts), atol=1e-6)
+    with pytest.raises(ValueError, match="Z > 0"):
+        c.project([0.0, 0.0, -1.0])
+
+
+def test_camera_validation():
+    with pytest.raises(ValueError, match="fx"):
+        Camera(-1, 1, 0, 0, 10, 10)
+    with pytest.raises(ValueError, match="width"):
+        Camera(1, 1, 0, 0, 10.5, 10)
+    with pytest.raises(ValueError, match="cx"):
+        Camera(1, 1, float("nan"), 0, 10, 10)
+    with pytest.raises(ValueError, match="dist"):
+        Camera(1, 1, 0, 0, 10, 10, dist=(0.1, 0.2, 0.3))
+    with pytest.raises(Exception):
+        Camera.thesis().fx = 3  # frozen
+
+
+def test_opencv_yaml_roundtrip_and_errors(tmp_path):
+    c = Camera.from_intrinsics(812.5, 815.0, 330.2, 241.7, 640, 480, dist=[-0.1, 0.01, 0, 0, 0.001])
+    path = tmp_path / "calib.yaml"
+    c.to_opencv_yaml(path)
+    assert Camera.from_opencv_yaml(path) == c
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n")
+    with pytest.raises(ValueError, match=r"bad\.yaml.*camera_matrix"):
+        Camera.from_opencv_yaml(bad)
+    bad.write_text("%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                   "   data: [800., 0., 320., 0., 800., 240., 0., 0., 1.]\nimage_width: 640\n")
+    with pytest.raises(ValueError, match="image_height"):
+        Camera.from_opencv_yaml(bad)
+    with pytest.raises(FileNotFoundError, match="nope.yaml"):
+        Camera.from_opencv_yaml(tmp_path / "nope.yaml")

@@ -1,0 +1,50 @@
+import time
+
+import numpy as np
+import pytest
+
+from localizer import Camera, detect_targets
+from localizer.synthetic import adversarial_frames, expose, real_photos
+
+
+@pytest.mark.parametrize("method", ["thesis", "exact"])
+def test_adversarial_patterns_rejected(cam16, method):
+    frames = adversarial_frames(cam16, np.random.default_rng(3))
+    assert {"chessboard", "barcode", "striped_sign", "door_frame", "noise", "black", "white"} <= set(frames)
+    for name, img in frames.items():
+        assert detect_targets(img, cam16, method=method) == [], name
+
+
+def test_black_white_noise_fast(cam16):
+    frames = adversarial_frames(cam16, np.random.default_rng(4))
+    for name in ("black", "white"):
+        t0 = time.perf_counter()
+        for _ in range(20):
+            assert detect_targets(frames[name], cam16) == []
+        assert (time.perf_counter() - t0) / 20 < 0.005, name
+
+
+def test_real_photos_rejected(cam16):
+    photos = real_photos(cam16)
+    if not photos:
+        pytest.skip("scikit-image not installed")
+    rng = np.random.default_rng(5)
+    for name, refl in photos.items():
+        for lighting in ("dim", "normal", "saturated"):
+            img = expose(refl, lighting, blur=0.5, noise=2.0, rng=rng)
+            assert detect_targets(img, cam16) == [], (name, lighting)
+
+
+def test_targets_on_real_photo_found(cam16):
+    from localizer.synthetic import pose_at_column, render_frame
+
+    photos = real_photos(cam16)
+    if not photos:
+        pytest.skip("scikit-image not installed")
+    rng = np.random.default_rng(6)
+    for name in ("brick", "astronaut", "page"):
+        pose = pose_at_column(cam16, 4.0, 0.5, 200, 0.1)
+        img = render_frame(cam16, pose, background=photos[name], noise=2.0, blur=0.6, rng=rng)
+        obs = detect_targets(img, cam16)
+        assert len(obs) == 1, name
+        assert obs[0].distance == pytest.approx(4.0, rel=0.01)
