@@ -114,21 +114,32 @@ class Simulation:
         events_before = contacts.events
         contacts.reset_window()
         space_step = self.space.step
+        track = vehicle.track
+        advance = encoders.advance
+        counts = encoders.counts
+        update = odometry.update_counts
+        cos, sin = math.cos, math.sin
+        v, omega = self.config.vehicle.clip_command(v, omega)
+        distance = 0.0
+        pos0 = body.position
+        a0 = body.angle
         for _ in range(self.config.substeps):
-            vehicle.apply(v, omega, dt)
-            pos0 = body.position
-            a0 = body.angle
+            track(v, omega, dt)
             space_step(dt)
             pos1 = body.position
             a1 = body.angle
-            dtheta = a1 - a0
-            half = 0.5 * dtheta
+            half = 0.5 * (a1 - a0)
             mid = a0 + half
-            chord = (pos1.x - pos0.x) * math.cos(mid) + (pos1.y - pos0.y) * math.sin(mid)
+            chord = (pos1.x - pos0.x) * cos(mid) + (pos1.y - pos0.y) * sin(mid)
             ds = chord / arc_chord_factor(half)
-            encoders.advance(ds, dtheta, contacts.in_contact, vehicle.wheel_speeds(), dt)
-            odometry.update(encoders.read())
-            self.distance += abs(ds)
+            if contacts.touching:
+                advance(ds, a1 - a0, True, vehicle.wheel_speeds(), dt)
+            else:
+                advance(ds, a1 - a0)
+            update(*counts())
+            distance += abs(ds)
+            pos0, a0 = pos1, a1
+        self.distance += distance
         self.steps += self.config.substeps
         self.time += self.config.control_dt
         return StepResult(odometry.take_increment(), frozenset(contacts.since_reset),

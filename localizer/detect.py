@@ -88,6 +88,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
             st.reject("pose")
             continue
         out.append(obs)
+        if len(out) >= p.max_targets:
+            break
     st.accepted += len(out)
     st.seconds += time.perf_counter() - t0
     if p.debug_dir:

@@ -43,7 +43,8 @@ class DetectorParams:
     # --- exact pose covariance
     edge_sigma_floor: float = 0.03  # px, model error added to every averaged edge position
     # --- misc
-    max_targets: int = 32
+    max_targets: int = 32  # most targets reported per frame
+    max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)
     debug_dir: str | None = None  # write intermediate images here (slow)
 
     def __post_init__(self) -> None:

@@ -78,7 +78,7 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     if len(tri) == 0:
         return []
     # grey levels of every triple on its own line (§4.5.2 (2), one line only: lenient)
-    mean, std, marg = segment_levels(lines, tri, p)
+    mean, std, marg, pmean = segment_levels(lines, tri, p)
     pos = tri.positive
     outer = 0.5 * (mean[:, 0] + mean[:, 2])
     dark = np.where(pos, outer, mean[:, 1])
@@ -90,6 +90,12 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     # the margins next to the outer edges have the gap's shade
     mfrac = (marg - dark[:, None]) / np.maximum(bright - dark, 1.0)[:, None]
     ok &= np.where(pos, mfrac.min(axis=1) >= 0.35, mfrac.max(axis=1) <= 0.65)
+    if p.reject_periodic:
+        # a flagged run beyond a margin that has the bars' shade: five equal runs, a grating
+        pfrac = (pmean - dark[:, None]) / np.maximum(bright - dark, 1.0)[:, None]
+        with np.errstate(invalid="ignore"):
+            barlike = np.where(pos[:, None], pfrac < 0.3, pfrac > 0.7) & ~np.isnan(pmean)
+        ok &= ~barlike.any(axis=1)
     seeds = np.flatnonzero(ok)
     stats.seeds += int(seeds.size)
     if seeds.size == 0:
@@ -100,13 +106,14 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     taken: list[tuple[int, int, int, int, bool]] = []  # (row0, row1, x0, x1, positive) of stacks found
     ys = tri.y.tolist()
     xbs = tri.x.tolist()
+    g = 2 + int(p.max_row_gap)  # a hit this near a stack's end belongs to it (blurred end lines)
     for k in seeds.tolist():
         y = ys[k]
         xb = xbs[k]
         pk = bool(pos[k])
-        if any(r0 <= y <= r1 and xb[1] < c1 and xb[2] > c0 and pp == pk for r0, r1, c0, c1, pp in taken):
+        if any(r0 - g <= y <= r1 + g and xb[1] < c1 and xb[2] > c0 and pp == pk for r0, r1, c0, c1, pp in taken):
             continue
-        if len(stacks) >= p.max_targets:
+        if len(stacks) >= p.max_candidates:
             break
         st = _fine_scan(image, y, xb, pk, float(thr_all[k]), p, max_ratio, stats)
         if st is None:
@@ -268,6 +275,14 @@ def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stac
     slack = 2 + 0.05 * nr
     if min(r0 - ends[0][0], r0 - ends[1][0]) > slack or min(ends[0][1] - r1, ends[1][1] - r1) > slack:
         stats.reject("bar_ends")
+        return None
+    # bar heights h1, h2 differ at most as the ranges of the bar centres do (|alpha| <= max_alpha):
+    # |h1 - h2| / h <= 2 b sin(max_alpha) / Z with Z = fy H / h (eq 4.3), plus 2 rows of slack
+    hs = [b - t + 1 for t, b in ends]
+    hm = 0.5 * (hs[0] + hs[1])
+    if abs(hs[0] - hs[1]) > 2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) * hm * hm \
+            / camera.fy + 2.0 + 0.03 * hm:
+        stats.reject("bar_heights")
         return None
     if p.check_margins:
         # blank margin above and below each bar (thesis §3.4: s = H/4 tall)

@@ -102,7 +102,10 @@ class Triples:
     ``(T,)`` arrays: ``y`` row, ``line`` batch line index, ``x`` ``(T, 4)`` run
     boundaries (first pixel of bar 1, gap, bar 2, and one past bar 2),
     ``positive`` True for black-white-black, ``margin`` ``(T, 2)`` lengths of
-    the runs either side.
+    the runs either side. ``periodic`` ``(T, 4)``: the run beyond each margin run
+    (start, end columns; left then right) when that margin and that run are both
+    as long as the bars -- the triple may then be part of a grating or a
+    chessboard -- else ``-1``.
     """
 
     y: np.ndarray
@@ -110,13 +113,14 @@ class Triples:
     x: np.ndarray
     positive: np.ndarray
     margin: np.ndarray
+    periodic: np.ndarray
 
     def __len__(self) -> int:
         return int(self.y.size)
 
 
 _EMPTY = Triples(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int), np.zeros(0, bool),
-                 np.zeros((0, 2), int))
+                 np.zeros((0, 2), int), np.zeros((0, 4), int))
 
 
 def find_triples(runs: Runs, p: DetectorParams) -> Triples:
@@ -148,7 +152,11 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     i = i[ok]
     if i.size == 0:
         return _EMPTY
+    x = runs.x
+    per = np.full((i.size, 4), -1, dtype=x.dtype)
     if p.reject_periodic:
+        # five or more equal runs in a row (a grating, a chessboard): flag the run beyond
+        # each margin; its grey level decides (:func:`segment_levels`, a bar's shade = periodic)
         m = (l[i] + l[i + 1] + l[i + 2]) / 3.0
         tol = p.periodic_tolerance * m + 1.0
         im2 = np.maximum(i - 2, 0)
@@ -156,13 +164,13 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
         li = line[i]
         left = (line[im2] == li) & (i >= 2) & (np.abs(l[i - 1] - m) <= tol) & (np.abs(l[im2] - m) <= tol)
         right = (line[ip4] == li) & (i + 4 < n) & (np.abs(l[i + 3] - m) <= tol) & (np.abs(l[ip4] - m) <= tol)
-        i = i[~(left | right)]
-        if i.size == 0:
-            return _EMPTY
-    x = runs.x
+        per[left, 0] = x[im2[left]]
+        per[left, 1] = x[im2[left]] + l[im2[left]]
+        per[right, 2] = x[ip4[right]]
+        per[right, 3] = x[ip4[right]] + l[ip4[right]]
     xb = np.stack([x[i], x[i + 1], x[i + 2], x[i + 2] + l[i + 2]], axis=1)
     return Triples(y=runs.y[i], line=line[i], x=xb, positive=~runs.g[i],
-                   margin=np.stack([l[i - 1], l[i + 3]], axis=1))
+                   margin=np.stack([l[i - 1], l[i + 3]], axis=1), periodic=per)
 
 
 def scan_lines(image: np.ndarray, rows: np.ndarray, p: DetectorParams, window: int):
@@ -182,8 +190,9 @@ def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
     For each triple, the mean and standard deviation (grey levels) of the
     non-boundary pixels of its three runs (bar, gap, bar; up to 2 px at each
     end are boundary, the thesis's 5-pixel edge transition) and the mean of the
-    ``max(1, b/4)`` margin pixels next to each outer edge. Computed from prefix
-    sums of the lines. Returns ``(mean (T, 3), std (T, 3), margin_mean (T, 2))``.
+    ``max(1, b/4)`` margin pixels next to each outer edge, and of the runs flagged
+    in ``tri.periodic`` (NaN where none). Computed from prefix sums of the lines.
+    Returns ``(mean (T, 3), std (T, 3), margin_mean (T, 2), periodic_mean (T, 2))``.
     """
     k, w = lines.shape
     v = lines.astype(np.int64)
@@ -209,4 +218,9 @@ def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
     l0 = tri.line
     left = (cs[l0, xb[:, 0]] - cs[l0, x0]) / np.maximum(xb[:, 0] - x0, 1)
     right = (cs[l0, x3] - cs[l0, xb[:, 3]]) / np.maximum(x3 - xb[:, 3], 1)
-    return s1, std, np.stack([left, right], axis=1)
+    per = tri.periodic
+    pa = np.maximum(per[:, 0::2], 0)
+    pb = np.maximum(per[:, 1::2], 0)
+    pm = (cs[li, pb] - cs[li, pa]) / np.maximum(pb - pa, 1)
+    pm[per[:, 0::2] < 0] = np.nan
+    return s1, std, np.stack([left, right], axis=1), pm

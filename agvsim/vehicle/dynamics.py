@@ -136,20 +136,29 @@ class DiffDriveVehicle:
         The command is clipped to the speed limits and slewed at the
         acceleration limits; the control body then carries it.
         """
+        v, omega = self.params.clip_command(v, omega)
+        self.track(v, omega, dt)
+
+    def track(self, v: float, omega: float, dt: float) -> None:
+        """Like :meth:`apply` for a command already clipped by
+        :meth:`VehicleParams.clip_command` (the per-physics-step hot path)."""
         p = self.params
-        v, omega = p.clip_command(v, omega)
         dv = p.max_accel * dt
         dw = p.max_yaw_accel * dt
-        self._v_cmd += min(max(v - self._v_cmd, -dv), dv)
-        self._w_cmd += min(max(omega - self._w_cmd, -dw), dw)
+        v_cmd = self._v_cmd + min(max(v - self._v_cmd, -dv), dv)
+        w_cmd = self._w_cmd + min(max(omega - self._w_cmd, -dw), dw)
+        body = self.body
         # pymunk integrates positions with the velocities solved in the previous
         # step, so the velocity set now moves the chassis during the *next*
         # step. Aim it along that step's mid heading (the angle after this
         # step plus half the next turn): the chassis then moves on the chord of
         # the arc that dead reckoning integrates, and ideal odometry is exact.
-        angle = self.body.angle + (self.body.angular_velocity + 0.5 * self._w_cmd) * dt
-        self.control.velocity = (self._v_cmd * math.cos(angle), self._v_cmd * math.sin(angle))
-        self.control.angular_velocity = self._w_cmd
+        angle = body.angle + (body.angular_velocity + 0.5 * w_cmd) * dt
+        self.control.velocity = (v_cmd * math.cos(angle), v_cmd * math.sin(angle))
+        if w_cmd != self._w_cmd:
+            self.control.angular_velocity = w_cmd
+        self._v_cmd = v_cmd
+        self._w_cmd = w_cmd
 
     def stop(self) -> None:
         """Zero the command at once (an emergency stop, no slew)."""

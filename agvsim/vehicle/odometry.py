@@ -56,7 +56,8 @@ class DeadReckoning:
         self.x, self.y, self.theta = (float(p) for p in pose)
         self._metres_per_count = wheel_radius / counts_per_rad
         self._track = track_width
-        self._last = ticks
+        self._last_left = ticks.left
+        self._last_right = ticks.right
         self._acc_ds = 0.0
         self._acc_dtheta = 0.0
         self.distance = 0.0  # m, total |Δs| integrated
@@ -68,9 +69,14 @@ class DeadReckoning:
 
     def update(self, ticks: WheelTicks) -> None:
         """Integrate the counts since the previous reading."""
-        s_left = (ticks.left - self._last.left) * self._metres_per_count
-        s_right = (ticks.right - self._last.right) * self._metres_per_count
-        self._last = ticks
+        self.update_counts(ticks.left, ticks.right)
+
+    def update_counts(self, left: float, right: float) -> None:
+        """Integrate cumulative counts (left, right) since the previous reading."""
+        s_left = (left - self._last_left) * self._metres_per_count
+        s_right = (right - self._last_right) * self._metres_per_count
+        self._last_left = left
+        self._last_right = right
         ds = 0.5 * (s_left + s_right)
         dtheta = (s_right - s_left) / self._track
         half = 0.5 * dtheta

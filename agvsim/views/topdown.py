@@ -147,6 +147,9 @@ class TopDownView:
         if vehicle_pose is not None:
             self._vehicle(img, vehicle_pose, vehicle_size)
         if legend and trajectories:
+            width = 48 + 8 * max(len(t.label) for t in trajectories)
+            panel = img[4:10 + 18 * len(trajectories), 4:4 + width]
+            panel[:] = (0.25 * panel + 0.75 * 255).astype(np.uint8)
             y0 = 18
             for traj in trajectories:
                 cv2.line(img, (10, y0 - 4), (34, y0 - 4), traj.color, 3, cv2.LINE_AA)

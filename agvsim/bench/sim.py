@@ -1,0 +1,92 @@
+"""``agvsim bench sim``: physics + odometry throughput on one core, no rendering.
+
+The route's commands are recorded once by driving it with the follower, then
+replayed (timed) through :meth:`agvsim.simulation.Simulation.step`. The peer
+measured in the same run is bare pymunk: the same space and chassis stepped
+with the same control-body velocities but without encoders, dead reckoning
+or contact bookkeeping — the floor our own per-step overhead sits on.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--map", default="plant_floor", help="map (default: %(default)s)")
+    parser.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"))
+    parser.add_argument("--laps", type=float, default=2.0, help="route passes to replay (default: %(default)s)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def run(args) -> dict:
+    import numpy as np
+
+    from agvsim.runner import drive_route
+    from agvsim.simulation import SimConfig, Simulation
+    from agvsim.vehicle.encoders import OdometryErrorModel
+    from agvsim.world.map import load_map
+
+    if args.repeats < 1 or not math.isfinite(args.laps) or args.laps <= 0:
+        raise ValueError("--repeats must be >= 1 and --laps positive")
+    world_map = load_map(args.map)
+    config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))
+    recorded = drive_route(world_map, np.random.default_rng(args.seed), config=config, laps=args.laps)
+    commands = [tuple(map(float, c)) for c in recorded.command]
+    start = world_map.route("default")[0].pose
+    n_physics = len(commands) * config.substeps
+    sim_seconds = len(commands) * config.control_dt
+
+    best = math.inf
+    for _ in range(args.repeats):
+        sim = Simulation(world_map, start, config, np.random.default_rng(args.seed))
+        t0 = time.perf_counter()
+        for v, w in commands:
+            sim.step(v, w)
+        best = min(best, time.perf_counter() - t0)
+
+    peer_best = math.inf
+    for _ in range(args.repeats):
+        sim = Simulation(world_map, start, config, np.random.default_rng(args.seed))
+        space, vehicle, dt = sim.space, sim.vehicle, config.physics_dt
+        t0 = time.perf_counter()
+        for v, w in commands:
+            v, w = config.vehicle.clip_command(v, w)
+            for _ in range(config.substeps):
+                vehicle.track(v, w, dt)
+                space.step(dt)
+        peer_best = min(peer_best, time.perf_counter() - t0)
+
+    return {
+        "benchmark": "sim",
+        "map": world_map.name,
+        "odometry": args.odometry,
+        "physics_rate_hz": config.physics_rate,
+        "control_rate_hz": config.control_rate,
+        "simulated_seconds": sim_seconds,
+        "physics_steps": n_physics,
+        "wall_seconds": best,
+        "physics_steps_per_second": n_physics / best,
+        "real_time_factor": sim_seconds / best,
+        "peer": {
+            "name": "bare pymunk (same space and chassis, no encoders/odometry)",
+            "wall_seconds": peer_best,
+            "physics_steps_per_second": n_physics / peer_best,
+            "real_time_factor": sim_seconds / peer_best,
+        },
+        "floor_real_time_factor": 500.0,
+    }
+
+
+def format_table(result: dict) -> str:
+    peer = result["peer"]
+    return "\n".join([
+        f"agvsim bench sim — {result['map']}, {result['odometry']} odometry, "
+        f"{result['physics_rate_hz']:.0f} Hz physics, {result['simulated_seconds']:.0f} s simulated",
+        f"machine: {result['machine'].get('cpu_model', '?')}, {result['machine'].get('cpu_count')} cores (one used)",
+        f"{'':28}{'steps/s':>12}{'real-time x':>14}",
+        f"{'agvsim (physics+odometry)':28}{result['physics_steps_per_second']:12.0f}{result['real_time_factor']:14.0f}",
+        f"{'bare pymunk (peer)':28}{peer['physics_steps_per_second']:12.0f}{peer['real_time_factor']:14.0f}",
+        f"floor: {result['floor_real_time_factor']:.0f}x real time",
+    ])
