@@ -15,7 +15,7 @@ from localizer.recognize import find_stacks, verify_stack
 from localizer.target import TargetSpec
 
 #: an exact fit whose normalised residual exceeds this is not a target
-MAX_FIT_RMS = 30.0
+MAX_FIT_RMS = 10.0
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:

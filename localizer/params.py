@@ -26,6 +26,7 @@ class DetectorParams:
     min_bar_px: int = 3  # px, shortest run accepted as a bar or gap
     width_tolerance: float = 0.35  # relative difference allowed between the three runs
     width_slack: float = 1.5  # px added to the allowed difference (quantisation)
+    max_edge_shift: float = 1.0  # px, common dark-side edge shift undone first (blur + saturation)
     min_margin_ratio: float = 0.25  # side margin run / mean run (thesis margin s = b/2)
     reject_periodic: bool = True  # drop triples inside 5+ equal runs (chessboards, gratings)
     periodic_tolerance: float = 0.2  # relative tolerance of "equal" for that test (margins are b/2)

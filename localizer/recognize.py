@@ -21,7 +21,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import scan_lines, segment_levels
+from localizer.scan import near_equal, scan_lines, segment_levels
 from localizer.target import TargetSpec
 
 
@@ -97,6 +97,8 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
             barlike = np.where(pos[:, None], pfrac < 0.3, pfrac > 0.7) & ~np.isnan(pmean)
         ok &= ~barlike.any(axis=1)
     seeds = np.flatnonzero(ok)
+    if seeds.size:
+        seeds = seeds[_tall_enough(image, tri, seeds, dark, bright, p)]
     stats.seeds += int(seeds.size)
     if seeds.size == 0:
         return []
@@ -122,6 +124,41 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
         stats.candidates += 1
         taken.append((int(st.rows[0]), int(st.rows[-1]), int(st.x[:, 0].min()), int(st.x[:, 3].max()), pk))
     return stacks
+
+
+def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, dark: np.ndarray, bright: np.ndarray,
+                 p: DetectorParams) -> np.ndarray:
+    """Minimum-height test (§4.5.2 (1)) in advance, for all seeds at once.
+
+    A stack of at least ``min_rows`` rows through row ``y`` contains row
+    ``y - k`` or row ``y + k``, ``k = (min_rows - 1) // 2``. On those two rows the
+    three segments at the seed's columns must have the seed's shades
+    (normalised mean of the non-boundary pixels below 0.35 for a dark segment,
+    above 0.65 for a light one). Returns a boolean mask over ``seeds``.
+    """
+    h, w = image.shape
+    k = max(1, (int(p.min_rows) - 1) // 2)
+    y = tri.y[seeds]
+    rows = np.concatenate([np.clip(y - k, 0, h - 1), np.clip(y + k, 0, h - 1)])
+    v = image[rows].astype(np.int32)
+    cs = np.zeros((rows.size, w + 1), np.int32)
+    np.cumsum(v, axis=1, out=cs[:, 1:])
+    xb = np.concatenate([tri.x[seeds], tri.x[seeds]])
+    a = xb[:, :3]
+    b = xb[:, 1:]
+    mm = np.minimum(2, (b - a - 1) // 2)
+    a2, b2 = a + mm, b - mm
+    li = np.arange(rows.size)[:, None]
+    mean = (cs[li, b2] - cs[li, a2]) / (b2 - a2)
+    dk = np.concatenate([dark[seeds], dark[seeds]])[:, None]
+    br = np.concatenate([bright[seeds], bright[seeds]])[:, None]
+    f = (mean - dk) / np.maximum(br - dk, 1.0)
+    pos = np.concatenate([tri.positive[seeds], tri.positive[seeds]])
+    barf = np.where(pos, np.maximum(f[:, 0], f[:, 2]), 1.0 - np.minimum(f[:, 0], f[:, 2]))
+    gapf = np.where(pos, f[:, 1], 1.0 - f[:, 1])
+    good = (barf < 0.35) & (gapf > 0.65)
+    n = seeds.size
+    return good[:n] | good[n:]
 
 
 def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, p: DetectorParams,
@@ -165,11 +202,9 @@ def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, 
         b1 = l_1 - l_2
         gp = r_1 - l_1
         b2 = r_2 - r_1
-        lmax = np.maximum(np.maximum(b1, gp), b2)
-        lmin = np.minimum(np.minimum(b1, gp), b2)
         s = b1 + gp + b2
-        ok = ~bar[:, xg] & (cl[:, -1] >= 2) & (cr[:, -1] >= 2) & (lmin >= p.min_bar_px)
-        ok &= (lmax - lmin) <= p.width_tolerance * lmax + p.width_slack
+        ok = ~bar[:, xg] & (cl[:, -1] >= 2) & (cr[:, -1] >= 2)
+        ok &= (np.minimum(np.minimum(b1, gp), b2) >= p.min_bar_px) & near_equal(b1, gp, b2, p)
         ok &= 3.0 * np.minimum(l_2 - l_3, r_3 - r_2) >= p.min_margin_ratio * s
         tol = max(2.0, 0.5 * m)
         ok &= (np.abs(l_2 + c0 - xb[0]) <= tol) & (np.abs(r_2 + c0 - xb[3]) <= tol)

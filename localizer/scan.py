@@ -123,6 +123,25 @@ _EMPTY = Triples(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int), np.z
                  np.zeros((0, 2), int), np.zeros((0, 4), int))
 
 
+def near_equal(l0, l1, l2, p: DetectorParams):
+    """The §4.5.1 test "three runs of approximately equal length", element-wise.
+
+    Blur with clipping (saturation) or a threshold off the midway level moves
+    every edge towards its dark side by a common amount, shrinking the dark runs
+    and growing the light ones by twice that. Up to ``max_edge_shift`` px of such a
+    shift is undone first (estimated from the gap against the mean bar); then the
+    longest and shortest run may differ by ``width_tolerance`` of the longest plus
+    ``width_slack`` px.
+    """
+    c = np.clip((l1 - 0.5 * (l0 + l2)) * 0.25, -p.max_edge_shift, p.max_edge_shift)
+    a0 = l0 + 2.0 * c
+    a1 = l1 - 2.0 * c
+    a2 = l2 + 2.0 * c
+    lmax = np.maximum(np.maximum(a0, a1), a2)
+    lmin = np.minimum(np.minimum(a0, a1), a2)
+    return (lmax - lmin) <= p.width_tolerance * lmax + p.width_slack
+
+
 def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     """Feature detection (§4.5.1): runs i, i+1, i+2 of one line, alternately
     dark-light-dark (positive target) or light-dark-light (negative), near-equal
@@ -143,11 +162,8 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     i = i[line[i - 1] == line[i + 3]]
     if i.size == 0:
         return _EMPTY
-    l0, l1, l2 = l[i], l[i + 1], l[i + 2]
-    lmax = np.maximum(np.maximum(l0, l1), l2)
-    lmin = np.minimum(np.minimum(l0, l1), l2)
-    s = l0 + l1 + l2
-    ok = (lmax - lmin) <= p.width_tolerance * lmax + p.width_slack
+    ok = near_equal(l[i], l[i + 1], l[i + 2], p)
+    s = l[i] + l[i + 1] + l[i + 2]
     ok &= 3.0 * np.minimum(l[i - 1], l[i + 3]) >= p.min_margin_ratio * s
     i = i[ok]
     if i.size == 0:
