@@ -141,27 +141,6 @@ def _edge_signs(positive: bool) -> tuple[np.ndarray, np.ndarray]:
     return np.array([1.0, -1.0, 1.0, -1.0]) * s, np.array([1.0, -1.0]) * s
 
 
-def _predict(P: np.ndarray, camera: Camera, target: TargetSpec, bar_cx: np.ndarray, positive: bool) -> np.ndarray:
-    """Predicted measurements for parameter rows ``P`` (k, 5) = (X, Z, alpha, Y, delta).
-
-    Returns (k, 8): four vertical edge x, then top y of bars 1-2, bottom y of bars 1-2,
-    at the measured bar centre columns ``bar_cx`` (2,).
-    """
-    X, Z, a, Y, dl = (P[:, i:i + 1] for i in range(5))
-    c, s = np.cos(a), np.sin(a)
-    b = target.bar_width
-    u = np.array([-1.5, -0.5, 0.5, 1.5]) * b
-    sv, sh = _edge_signs(positive)
-    ex = camera.cx + camera.fx * (X + u * c) / (Z - u * s) + dl * sv
-    t = (bar_cx - camera.cx) / camera.fx  # (2,)
-    uu = (t * Z - X) / (c + t * s)
-    zc = Z - uu * s
-    hh = 0.5 * target.bar_height
-    top = camera.cy + camera.fy * (Y - hh) / zc + dl * sh[0]
-    bot = camera.cy + camera.fy * (Y + hh) / zc + dl * sh[1]
-    return np.concatenate([ex, top, bot], axis=1)
-
-
 def _initial(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool) -> np.ndarray:
     b, H = target.bar_width, target.bar_height
     sv, sh = _edge_signs(positive)
@@ -203,23 +182,93 @@ def _initial(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: 
     return np.array([X, Z, alpha0, Y, delta]), cands
 
 
-def _gauss_newton(p: np.ndarray, meas, wv, camera, target, bar_cx, positive, iterations):
-    steps = np.array([1e-6, 1e-6, 1e-6, 1e-6, 1e-4])
+def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh: float,
+           sv: tuple, sh: tuple):
+    """Predicted measurements and their Jacobian for parameters ``p = (X, Z, alpha, Y, delta)``.
+
+    Pure-Python scalars (the problem is 8 x 5; numpy's per-call overhead would
+    dominate). Measurements, in order: the four vertical edges
+    ``x_k = cx + fx (X + u_k cos a) / (Z - u_k sin a) + delta sv_k`` (``u_k`` the
+    edges' target abscissae, m), then the tops and bottoms of bars 1 and 2 at the
+    bar centre columns, whose rays ``x/z = t_j`` meet the target plane at range
+    ``z_j = (Z cos a + X sin a) / (cos a + t_j sin a)``:
+    ``y = cy + fy (Y -+ H/2) / z_j + delta sh``. Returns ``(pred (8,), J (8, 5))``
+    as lists.
+    """
+    X, Z, a, Y, dl = p
+    c, s = math.cos(a), math.sin(a)
+    pred = []
+    J = []
+    for k in range(4):
+        uk = u[k]
+        N = X + uk * c
+        iM = 1.0 / (Z - uk * s)
+        q = N * iM
+        pred.append(cx + fx * q + dl * sv[k])
+        J.append((fx * iM, -fx * q * iM, fx * uk * (N * c - s / iM) * iM * iM, 0.0, sv[k]))
+    D = Z * c + X * s
+    iD = 1.0 / D
+    dD = X * c - Z * s
+    rows_t, rows_b = [], []
+    for j in range(2):
+        tj = t[j]
+        g = c + tj * s
+        q = g * iD  # 1 / z_j
+        dq_dx = -g * s * iD * iD
+        dq_dz = -g * c * iD * iD
+        dq_da = ((tj * c - s) * D - g * dD) * iD * iD
+        for yv, dst, shv in ((Y - hh, rows_t, sh[0]), (Y + hh, rows_b, sh[1])):
+            dst.append((cy + fy * yv * q + dl * shv, (fy * yv * dq_dx, fy * yv * dq_dz, fy * yv * dq_da, fy * q, shv)))
+    for pr, jr in rows_t + rows_b:
+        pred.append(pr)
+        J.append(jr)
+    return pred, J
+
+
+def _solve_spd(A, b):
+    """Solve the symmetric positive definite system ``A x = b`` (lists) by Cholesky."""
+    n = len(b)
+    Lm = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            v = A[i][j] - sum(Lm[i][k] * Lm[j][k] for k in range(j))
+            if i == j:
+                if v <= 0.0:
+                    raise np.linalg.LinAlgError("normal matrix not positive definite")
+                Lm[i][i] = math.sqrt(v)
+            else:
+                Lm[i][j] = v / Lm[j][j]
+    y = [0.0] * n
+    for i in range(n):
+        y[i] = (b[i] - sum(Lm[i][k] * y[k] for k in range(i))) / Lm[i][i]
+    x = [0.0] * n
+    for i in reversed(range(n)):
+        x[i] = (y[i] - sum(Lm[k][i] * x[k] for k in range(i + 1, n))) / Lm[i][i]
+    return x
+
+
+def _gauss_newton(p, meas, wv, args, iterations: int):
+    """Weighted Gauss-Newton from ``p`` (5,); returns ``(p, chi2, JtWJ (5, 5) array)``."""
+    p = list(p)
+    nm = len(meas)
     for it in range(iterations + 1):
-        hstep = steps * np.array([p[1], p[1], 1.0, p[1], 1.0])
-        P = np.vstack([p, p + np.diag(hstep)])
-        pred = _predict(P, camera, target, bar_cx, positive)
-        r = (meas - pred[0]) * wv
-        J = (pred[1:] - pred[0]).T / hstep * wv[:, None]  # (8, 5)
-        JtJ = J.T @ J
+        pred, J = _model(p, *args)
+        r = [(meas[i] - pred[i]) * wv[i] for i in range(nm)]
+        Jw = [[v * wv[i] for v in J[i]] for i in range(nm)]
+        A = [[sum(Jw[i][a] * Jw[i][b] for i in range(nm)) for b in range(5)] for a in range(5)]
         if it == iterations:
             break
-        dp = np.linalg.solve(JtJ + 1e-12 * np.eye(5), J.T @ r)
-        p = p + dp
+        g = [sum(Jw[i][a] * r[i] for i in range(nm)) for a in range(5)]
+        for a in range(5):
+            A[a][a] *= 1.0 + 1e-12
+        dp = _solve_spd(A, g)
+        p = [p[i] + dp[i] for i in range(5)]
         p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
+        if not p[1] > 0:
+            raise ValueError("fit left the half-space in front of the camera")
         if abs(dp[1]) < 1e-7 * p[1] and abs(dp[2]) < 1e-8:
             iterations = it + 1  # one more pass for the final Jacobian
-    return p, float(r @ r), JtJ
+    return np.array(p), sum(v * v for v in r), np.array(A)
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -234,8 +283,10 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     Far away the widths alone allow two orientations (the thesis's ambiguity,
     §4.2.2; the mirror solution about the line of sight) and only the small
     bar-height difference separates them. The fit is therefore started from
-    both roots of Appendix A's analytic solution (eq A.14) and the better minimum
-    is reported; when the other one is not ruled out (chi-square difference below
+    the root of Appendix A's analytic solution (eq A.14) nearer the bar-height
+    estimate, and again from the other root unless the first fit's own alpha
+    variance puts that root beyond 8 standard deviations; the better minimum is
+    reported. When the other one is not ruled out (chi-square difference below
     16) the covariance is widened by the separation of the two minima, weighted
     by their relative likelihood, so that it says honestly how little the image
     tells about alpha.
@@ -245,24 +296,34 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     scaled up by the reduced chi-square when it exceeds one, mapped to
     (d, beta, alpha).
     """
-    meas = np.concatenate([m.edges_x, m.top_y, m.bottom_y]).astype(float)
-    sig = np.sqrt(np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]) ** 2 + sigma_floor ** 2)
-    wv = 1.0 / sig
+    meas = [float(v) for v in np.concatenate([m.edges_x, m.top_y, m.bottom_y])]
+    sig2 = np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]) ** 2 + sigma_floor ** 2
+    wv = [float(v) for v in 1.0 / np.sqrt(sig2)]
     p0, cands = _initial(m, camera, target, positive)
-    bar_cx = np.asarray(m.bar_cx, float)
-    starts = [p0]
-    other = cands[1] if abs(cands[0] - p0[2]) < abs(cands[1] - p0[2]) else cands[0]
-    if abs(other - p0[2]) > math.radians(0.5):
-        p1 = p0.copy()
-        p1[2] = other
-        starts.append(p1)
-    sols = [_gauss_newton(s.copy(), meas, wv, camera, target, bar_cx, positive, iterations) for s in starts]
-    sols.sort(key=lambda s: s[1])
-    p, chi2, JtJ = sols[0]
-    dof = meas.size - 5
+    sv, sh = _edge_signs(positive)
+    t = tuple(float(v) for v in (np.asarray(m.bar_cx, float) - camera.cx) / camera.fx)
+    args = (camera.fx, camera.fy, camera.cx, camera.cy, tuple(float(v) for v in target_edges_u(target)), t,
+            0.5 * target.bar_height, tuple(float(v) for v in sv), tuple(float(v) for v in sh))
+    p, chi2, JtJ = _gauss_newton(p0, meas, wv, args, iterations)
+    dof = len(meas) - 5
     scale = max(1.0, chi2 / dof)
     cov_p = np.linalg.inv(JtJ) * scale
+    # the mirror solution (§4.2.2): fit it too unless the first fit's own alpha variance
+    # puts the other root of A.14 beyond 8 standard deviations
+    other = cands[1] if abs(cands[0] - p0[2]) < abs(cands[1] - p0[2]) else cands[0]
+    sols = [(p, chi2, JtJ)]
+    if abs(other - p[2]) > math.radians(0.5):
+        p1 = p0.copy()
+        p1[2] = other
+        try:
+            sols.append(_gauss_newton(p1, meas, wv, args, iterations))
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):
+            pass
     if len(sols) > 1:
+        sols.sort(key=lambda s: s[1])
+        p, chi2, JtJ = sols[0]
+        scale = max(1.0, chi2 / dof)
+        cov_p = np.linalg.inv(JtJ) * scale
         q, chi2q, _ = sols[1]
         dchi = (chi2q - chi2) / scale
         sep = q[:3] - p[:3]
@@ -276,3 +337,8 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     cov = T @ cov_p[:3, :3] @ T.T
     return PoseEstimate(d, math.atan2(X, Z), alpha, Z, X, float(p[3]), cov, tuple(cands), len(sols) > 1,
                         float(p[4]), math.sqrt(chi2 / dof))
+
+
+def target_edges_u(target: TargetSpec) -> np.ndarray:
+    """Target abscissae ``u`` (m) of the four vertical bar edges: ``-1.5b, -0.5b, 0.5b, 1.5b``."""
+    return np.array([-1.5, -0.5, 0.5, 1.5]) * target.bar_width

@@ -98,7 +98,8 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
         ok &= ~barlike.any(axis=1)
     seeds = np.flatnonzero(ok)
     if seeds.size:
-        seeds = seeds[_tall_enough(image, tri, seeds, dark, bright, p)]
+        lo_ratio = target.active_height / target.active_width * camera.fy / camera.fx * (1.0 - p.aspect_tolerance)
+        seeds = seeds[_tall_enough(image, tri, seeds, dark, bright, p, lo_ratio)]
     stats.seeds += int(seeds.size)
     if seeds.size == 0:
         return []
@@ -127,18 +128,20 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
 
 
 def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, dark: np.ndarray, bright: np.ndarray,
-                 p: DetectorParams) -> np.ndarray:
-    """Minimum-height test (§4.5.2 (1)) in advance, for all seeds at once.
+                 p: DetectorParams, lo_ratio: float) -> np.ndarray:
+    """Minimum-height and aspect tests (§4.5.2 (1)) in advance, for all seeds at once.
 
-    A stack of at least ``min_rows`` rows through row ``y`` contains row
-    ``y - k`` or row ``y + k``, ``k = (min_rows - 1) // 2``. On those two rows the
+    A stack of at least ``M`` rows through row ``y`` contains row ``y - k`` or row
+    ``y + k``, ``k = (M - 1) // 2``; ``M`` is ``min_rows`` or, if more, the least
+    height the aspect test allows for the seed's width (``lo_ratio`` times it). On those two rows the
     three segments at the seed's columns must have the seed's shades
     (normalised mean of the non-boundary pixels below 0.35 for a dark segment,
     above 0.65 for a light one). Returns a boolean mask over ``seeds``.
     """
     h, w = image.shape
-    k = max(1, (int(p.min_rows) - 1) // 2)
     y = tri.y[seeds]
+    width = tri.x[seeds, 3] - tri.x[seeds, 0]
+    k = np.maximum(1, (np.maximum(int(p.min_rows), np.floor(lo_ratio * width).astype(int)) - 1) // 2)
     rows = np.concatenate([np.clip(y - k, 0, h - 1), np.clip(y + k, 0, h - 1)])
     v = image[rows].astype(np.int32)
     cs = np.zeros((rows.size, w + 1), np.int32)

@@ -1,0 +1,154 @@
+"""One drive of the vehicle, step by step, with a chosen pose source.
+
+:class:`Episode` is what the Gymnasium adapters in ``envs/`` wrap: it owns
+the simulation and the localization and knows nothing of rewards or spaces.
+Each :meth:`Episode.step` applies one (v, ω) command for one control step
+and returns what the vehicle believes (pose and covariance), what its wheels
+measured, and what happened (contacts); ground truth is kept apart.
+
+Localization modes:
+    ``truth``     the believed pose is the true pose (covariance zero);
+    ``odometry``  dead reckoning, with its covariance propagated by the
+                  odometry motion model;
+    ``ekf``       dead reckoning corrected by camera observations of the
+                  wall targets (the closed loop of :mod:`agvsim.mission`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agvsim.simulation import SimConfig, Simulation
+
+LOCALIZATION_MODES: tuple[str, ...] = ("ekf", "odometry", "truth")
+
+
+@dataclass(frozen=True)
+class EpisodeStep:
+    """What one control step produced.
+
+    Attributes:
+        believed_pose: (3,) pose the vehicle believes (x m, y m, θ rad), θ wrapped.
+        covariance: (3, 3) covariance of ``believed_pose`` (m², m·rad, rad²).
+        wheel_speeds: (2,) measured (left, right) rim speeds over the step (m/s).
+        collided: a contact began during the step.
+        in_contact: touching a wall or obstacle at the end of the step.
+        accepted: target observations fused during the step.
+        rejected: target observations refused during the step.
+        frame: the camera frame taken during the step, if any ((H, W) uint8).
+    """
+
+    believed_pose: np.ndarray
+    covariance: np.ndarray
+    wheel_speeds: np.ndarray
+    collided: bool
+    in_contact: bool
+    accepted: int = 0
+    rejected: int = 0
+    frame: np.ndarray | None = None
+
+
+def wrap_angle(a: float) -> float:
+    """Angle wrapped to (-π, π] (rad)."""
+    return math.atan2(math.sin(a), math.cos(a))
+
+
+@dataclass
+class _OdometryCovariance:
+    """Covariance of dead reckoning propagated with the per-wheel noise
+    model of :class:`agvsim.vehicle.encoders.OdometryErrorModel`: each wheel's
+    arc s has variance k²|s| (k = ``wheel_noise``, m^(1/2)).
+
+    For an increment (Δs, Δθ) from wheel arcs (s_L, s_R) with Δs = (s_L+s_R)/2,
+    Δθ = (s_R−s_L)/b, the pose Jacobians are (heading φ = θ + Δθ/2)::
+
+        F = [[1, 0, -Δs sin φ], [0, 1, Δs cos φ], [0, 0, 1]]
+        G = [[cos φ/2 + Δs sin φ/(2b), cos φ/2 - Δs sin φ/(2b)],
+             [sin φ/2 - Δs cos φ/(2b), sin φ/2 + Δs cos φ/(2b)],
+             [-1/b, 1/b]]                       (columns: s_L, s_R)
+
+    and P ← F P Fᵀ + G diag(k²|s_L|, k²|s_R|) Gᵀ. A floor of ``min_noise``
+    keeps the covariance honest when the preset has no random error (it
+    cannot see systematic errors at all).
+    """
+
+    track: float  # m, nominal wheelbase
+    wheel_noise: float  # m^(1/2)
+    cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    min_noise: float = 1e-3  # m^(1/2)
+
+    def predict(self, theta: float, ds: float, dtheta: float) -> None:
+        b = self.track
+        k2 = max(self.wheel_noise, self.min_noise) ** 2
+        s_l = ds - 0.5 * dtheta * b
+        s_r = ds + 0.5 * dtheta * b
+        phi = theta - 0.5 * dtheta  # theta is the heading after the increment
+        c, s = math.cos(phi), math.sin(phi)
+        F = np.array([[1.0, 0.0, -ds * s], [0.0, 1.0, ds * c], [0.0, 0.0, 1.0]])
+        G = np.array([[0.5 * c + ds * s / (2 * b), 0.5 * c - ds * s / (2 * b)],
+                      [0.5 * s - ds * c / (2 * b), 0.5 * s + ds * c / (2 * b)],
+                      [-1.0 / b, 1.0 / b]])
+        Q = np.diag([k2 * abs(s_l), k2 * abs(s_r)])
+        self.cov = F @ self.cov @ F.T + G @ Q @ G.T
+
+
+class Episode:
+    """A vehicle on a map, stepped at the control rate.
+
+    Args:
+        world_map: the map.
+        start_pose: true start pose (x m, y m, θ rad); dead reckoning and the
+            filter start from it too (the AGV is told where it starts).
+        config: rates, vehicle, odometry error model.
+        rng: the episode's generator (odometry noise, camera noise).
+        localization: one of :data:`LOCALIZATION_MODES`.
+    """
+
+    def __init__(self, world_map, start_pose, config: SimConfig, rng: np.random.Generator,
+                 localization: str = "odometry") -> None:
+        if localization not in LOCALIZATION_MODES:
+            raise ValueError(f"localization must be one of {LOCALIZATION_MODES}, got {localization!r}")
+        if localization == "ekf":
+            raise NotImplementedError("localization='ekf' is wired in with the closed loop (agvsim.mission)")
+        self.map = world_map
+        self.config = config
+        self.localization = localization
+        self.sim = Simulation(world_map, start_pose, config, rng)
+        self._cov = _OdometryCovariance(config.vehicle.track_width, config.odometry.wheel_noise)
+        self.accepted_total = 0
+        self.rejected_total = 0
+
+    @property
+    def true_pose(self) -> np.ndarray:
+        """(3,) ground truth, θ wrapped; for rewards, rendering and evaluation."""
+        x, y, th = self.sim.true_pose
+        return np.array([x, y, wrap_angle(th)])
+
+    @property
+    def odometry_pose(self) -> np.ndarray:
+        x, y, th = self.sim.odometry_pose
+        return np.array([x, y, wrap_angle(th)])
+
+    @property
+    def believed_pose(self) -> np.ndarray:
+        return self.true_pose if self.localization == "truth" else self.odometry_pose
+
+    @property
+    def covariance(self) -> np.ndarray:
+        if self.localization == "truth":
+            return np.zeros((3, 3))
+        return self._cov.cov.copy()
+
+    def step(self, v: float, omega: float) -> EpisodeStep:
+        """Apply (v m/s, ω rad/s) for one control step."""
+        result = self.sim.step(v, omega)
+        inc = result.odometry
+        self._cov.predict(inc.pose[2], inc.ds, inc.dtheta)
+        dt = self.config.control_dt
+        half = 0.5 * self.config.vehicle.track_width
+        wheels = np.array([(inc.ds - inc.dtheta * half) / dt, (inc.ds + inc.dtheta * half) / dt])
+        return EpisodeStep(believed_pose=self.believed_pose, covariance=self.covariance,
+                           wheel_speeds=wheels, collided=result.collided,
+                           in_contact=self.sim.contacts.in_contact)

@@ -1,0 +1,270 @@
+"""The agvsim Gymnasium environment: a thin adapter over :class:`agvsim.episode.Episode`."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from envs.config import EnvConfig
+
+
+class AGVEnv(gym.Env):
+    """Drive a vision-guided AGV on a plant floor.
+
+    ## Description
+    A 1.0 x 0.7 m differential-drive AGV (pymunk dynamics at 100 Hz) drives on
+    a plant-floor map. Its wheel encoders drift (``odometry`` preset); a
+    camera sees two-bar wall targets at ``camera_rate`` and, with
+    ``localization="ekf"``, each target recognized corrects the pose through
+    an EKF. The agent sees only what the vehicle believes, never the true
+    pose (unless ``localization="truth"``).
+
+    Tasks: ``goto`` drives from a start station to a goal station of the
+    route; ``localize`` (active localization) rewards keeping the estimate
+    close to the truth, so planners learn to seek targets.
+
+    ## Action space
+    ``Box(-1, 1, (2,), float32)``: (forward speed, yaw rate) as fractions of
+    the vehicle's limits (1.5 m/s, 1.5 rad/s). Out-of-range actions are
+    clipped; NaN raises ``ValueError``.
+
+    ## Observation space
+    ``Dict``:
+    - ``pose``: ``Box((3,), float32)`` believed (x m, y m, θ rad), θ in (-π, π].
+    - ``covariance``: ``Box((3, 3), float32)`` its covariance (m², m·rad, rad²).
+    - ``goal``: ``Box((3,), float32)`` the goal in the believed vehicle frame:
+      (forward m, left m, heading difference rad). Zeros for ``localize``.
+    - ``wheel_speeds``: ``Box((2,), float32)`` measured (left, right) rim speeds (m/s).
+    - ``image`` (with ``observe_image=True``): ``Box(0, 255, (480, 512, 1), uint8)``,
+      the latest camera frame.
+
+    ## Rewards
+    ``goto``: progress towards the goal measured on the *true* pose (m closer
+    this step), minus ``collision_penalty`` per contact begun, minus
+    ``time_cost`` per step. ``localize``: ``1 / (1 + (e / error_scale)²)``
+    per step for a true position error e (m), minus the same penalties.
+
+    ## Starting state
+    The vehicle starts at a station of ``route`` drawn from the env's
+    ``np_random`` (``goto`` also draws a different goal station). The
+    estimate starts at the true start pose.
+
+    ## Episode end
+    ``terminated``: ``goto`` when the true pose is within ``goal_radius`` of
+    the goal; with ``terminate_on_collision``, at the first contact.
+    ``truncated``: after ``max_episode_steps`` policy steps.
+
+    ## Arguments
+    ``gymnasium.make("agvsim/PlantFloor-v0", map=..., route=..., task=...,
+    odometry="typical", localization="ekf" | "odometry" | "truth",
+    camera_rate=4.0, lens=16, lighting_randomization=0.0, observe_image=False,
+    policy_rate=10.0, max_episode_steps=3000, goal_radius=0.5,
+    terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
+    error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
+    ``ValueError``. See :class:`envs.config.EnvConfig` for units.
+
+    ## Info
+    ``true_pose``, ``estimated_pose``, ``odometry_pose`` (each (3,) float64,
+    map frame), ``position_error`` (m), ``observations`` ({"accepted": n,
+    "rejected": m} this step), ``collision`` (bool).
+
+    ## Rendering
+    ``render_mode="rgb_array"``: the top-down view with the true,
+    dead-reckoned and estimated trajectories, the 2σ covariance ellipse, the
+    camera's field of view, and the latest camera frame inset. No OpenGL is
+    touched until a camera frame is needed.
+
+    ## Version history
+    - v0: initial release.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self._kwargs = dict(kwargs)
+        self.config = EnvConfig.from_kwargs(**kwargs)
+        import agvsim
+        from agvsim.simulation import SimConfig
+        from agvsim.vehicle.encoders import OdometryErrorModel
+
+        self.map = agvsim.load_map(self.config.map)
+        self.stations = self.map.route(self.config.route)
+        if len({s.id for s in self.stations}) < 2:
+            raise ValueError(f"route {self.config.route!r} needs at least two distinct stations")
+        self.sim_config = SimConfig(control_rate=self.config.policy_rate,
+                                    odometry=OdometryErrorModel.preset(self.config.odometry))
+        self.metadata = {**self.metadata, "render_fps": int(round(self.config.policy_rate))}
+        vp = self.sim_config.vehicle
+        self._limits = np.array([vp.max_speed, vp.max_yaw_rate])
+        xmin, ymin, xmax, ymax = self.map.bounds
+        span = max(xmax - xmin, ymax - ymin)
+        big = np.float32(1e6)
+        obs = {
+            "pose": spaces.Box(np.array([xmin - span, ymin - span, -math.pi], np.float32),
+                               np.array([xmax + span, ymax + span, math.pi], np.float32), dtype=np.float32),
+            "covariance": spaces.Box(-big, big, (3, 3), np.float32),
+            "goal": spaces.Box(np.array([-3 * span, -3 * span, -math.pi], np.float32),
+                               np.array([3 * span, 3 * span, math.pi], np.float32), dtype=np.float32),
+            "wheel_speeds": spaces.Box(-2 * vp.max_speed, 2 * vp.max_speed, (2,), np.float32),
+        }
+        if self.config.observe_image:
+            obs["image"] = spaces.Box(0, 255, (480, 512, 1), np.uint8)
+        self.observation_space = spaces.Dict(obs)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self._episode = None
+        self._goal = None
+        self._view = None
+        self._frame = None
+        self._steps = 0
+        self._paths: dict[str, list[np.ndarray]] = {}
+
+    # -- Gymnasium API -------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        from agvsim.episode import Episode
+
+        rng = self.np_random
+        ids = list(dict.fromkeys(s.id for s in self.stations))
+        start_id = ids[int(rng.integers(len(ids)))]
+        start = self.map.station(start_id)
+        goal = None
+        if self.config.task == "goto":
+            others = [i for i in ids if i != start_id]
+            goal = self.map.station(others[int(rng.integers(len(others)))])
+        self._goal = goal
+        self._episode = Episode(self.map, start.pose, self.sim_config, rng,
+                                localization=self.config.localization)
+        self._steps = 0
+        self._frame = None
+        self._prev_goal_distance = self._goal_distance()
+        self._paths = {"true": [self._episode.true_pose], "odometry": [self._episode.odometry_pose],
+                       "estimate": [self._episode.believed_pose]}
+        pose = self._episode.believed_pose
+        obs = self._observation(pose, self._episode.covariance, np.zeros(2))
+        info = self._info(accepted=0, rejected=0, collision=False)
+        return obs, info
+
+    def step(self, action):
+        if self._episode is None:
+            raise RuntimeError("call reset() before step()")
+        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        if action.shape != (2,):
+            raise ValueError(f"action must have shape (2,), got {np.shape(action)}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be finite, got {action}")
+        v, w = np.clip(action, -1.0, 1.0) * self._limits
+        step = self._episode.step(float(v), float(w))
+        self._steps += 1
+        if step.frame is not None:
+            self._frame = step.frame
+        for key, pose in (("true", self._episode.true_pose), ("odometry", self._episode.odometry_pose),
+                          ("estimate", step.believed_pose)):
+            self._paths[key].append(pose)
+        cfg = self.config
+        reward = -cfg.time_cost - cfg.collision_penalty * float(step.collided)
+        terminated = False
+        if cfg.task == "goto":
+            dist = self._goal_distance()
+            reward += self._prev_goal_distance - dist
+            self._prev_goal_distance = dist
+            terminated = dist <= cfg.goal_radius
+        else:
+            err = float(np.hypot(*(self._episode.true_pose[:2] - step.believed_pose[:2])))
+            reward += 1.0 / (1.0 + (err / cfg.error_scale) ** 2)
+        if cfg.terminate_on_collision and step.collided:
+            terminated = True
+        truncated = (not terminated) and self._steps >= cfg.max_episode_steps
+        obs = self._observation(step.believed_pose, step.covariance, step.wheel_speeds)
+        info = self._info(step.accepted, step.rejected, step.collided)
+        return obs, float(reward), bool(terminated), bool(truncated), info
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self._episode is None:
+            return None
+        from agvsim.views import TopDownView, Trajectory
+
+        if self._view is None:
+            self._view = TopDownView(self.map, pixels_per_metre=12.0, max_size=800)
+        ep = self._episode
+        trajectories = (Trajectory(np.array(self._paths["true"]), (30, 150, 40), "true"),
+                        Trajectory(np.array(self._paths["odometry"]), (210, 40, 40), "dead reckoning"),
+                        Trajectory(np.array(self._paths["estimate"]), (40, 90, 220), "estimate"))
+        cov = ep.covariance[:2, :2]
+        img = self._view.render(trajectories, vehicle_pose=tuple(ep.true_pose),
+                                ellipses=((ep.believed_pose[:2], cov, (40, 90, 220)),))
+        if self._frame is not None:
+            img = _inset(img, self._frame)
+        return img
+
+    def close(self) -> None:
+        self._episode = None
+        self._view = None
+
+    # -- pickling: rebuild from the constructor arguments ---------------------
+    def __getstate__(self):
+        return {"render_mode": self.render_mode, "kwargs": self._kwargs}
+
+    def __setstate__(self, state):
+        self.__init__(render_mode=state["render_mode"], **state["kwargs"])
+
+    # -- helpers ---------------------------------------------------------------
+    def _goal_distance(self) -> float:
+        if self._goal is None:
+            return 0.0
+        x, y, _ = self._episode.true_pose
+        return float(math.hypot(self._goal.pose[0] - x, self._goal.pose[1] - y))
+
+    def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels: np.ndarray) -> dict:
+        goal = np.zeros(3)
+        if self._goal is not None:
+            gx, gy, gth = self._goal.pose
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            dx, dy = gx - pose[0], gy - pose[1]
+            dth = math.atan2(math.sin(gth - pose[2]), math.cos(gth - pose[2]))
+            goal = np.array([c * dx + s * dy, -s * dx + c * dy, dth])
+        obs = {
+            "pose": np.asarray(pose, dtype=np.float32).copy(),
+            "covariance": np.asarray(cov, dtype=np.float32).copy(),
+            "goal": goal.astype(np.float32),
+            "wheel_speeds": np.asarray(wheels, dtype=np.float32).copy(),
+        }
+        if self.config.observe_image:
+            frame = self._frame if self._frame is not None else np.zeros((480, 512), np.uint8)
+            obs["image"] = np.asarray(frame, dtype=np.uint8).reshape(480, 512, 1).copy()
+        return obs
+
+    def _info(self, accepted: int, rejected: int, collision: bool) -> dict:
+        ep = self._episode
+        true_pose, est = ep.true_pose, ep.believed_pose
+        return {
+            "true_pose": true_pose.copy(),
+            "estimated_pose": est.copy(),
+            "odometry_pose": ep.odometry_pose.copy(),
+            "position_error": float(np.hypot(*(true_pose[:2] - est[:2]))),
+            "observations": {"accepted": int(accepted), "rejected": int(rejected)},
+            "collision": bool(collision),
+        }
+
+
+def _inset(canvas: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """Paste a grey camera frame, scaled to a third of the canvas width, at its top right."""
+    import cv2
+
+    h, w = canvas.shape[:2]
+    tw = max(64, w // 3)
+    th = int(round(frame.shape[0] * tw / frame.shape[1]))
+    if th >= h:
+        return canvas
+    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    if small.ndim == 2:
+        small = np.repeat(small[..., None], 3, axis=2)
+    out = canvas.copy()
+    out[4:4 + th, w - tw - 4:w - 4] = small[..., :3]
+    cv2.rectangle(out, (w - tw - 5, 3), (w - 3, 5 + th), (20, 20, 20), 1)
+    return out

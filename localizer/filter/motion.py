@@ -1,0 +1,201 @@
+r"""Odometry prediction: composing (Δs, Δθ) increments and their noise.
+
+A control step's odometry increment is an arc of length Δs turning Δθ. In the
+frame of the pose at its start it moves the vehicle by (exact for a
+constant-curvature arc, as the dead reckoning integrates it)::
+
+    m(Δs, Δθ) = (Δs k cos(Δθ/2), Δs k sin(Δθ/2), Δθ),    k = sinc(Δθ/2) = sin(Δθ/2) / (Δθ/2)
+
+Pose composition ``x ⊕ u`` of a pose x = (px, py, θ) and a relative motion
+u = (ux, uy, uφ) given in x's frame::
+
+    x ⊕ u = (px + cos θ ux - sin θ uy,  py + sin θ ux + cos θ uy,  θ + uφ)
+
+    F = ∂(x ⊕ u)/∂x = [[1, 0, -sin θ ux - cos θ uy],      G = ∂(x ⊕ u)/∂u = [[cos θ, -sin θ, 0],
+                       [0, 1,  cos θ ux - sin θ uy],                          [sin θ,  cos θ, 0],
+                       [0, 0, 1]]                                             [0, 0, 1]]
+
+Between camera frames the increments are accumulated into one relative
+motion u with covariance Q_u (:class:`OdometryAccumulator`, O(1) float work
+per control step); the filter then predicts once per frame with
+``P ← F P Fᵀ + G Q_u Gᵀ``.
+
+Noise model (:class:`OdometryNoise`). Each wheel's arc s gets white noise of
+variance ``k_w² |s|`` (the simulator's per-wheel random walk). With
+Δs = (s_R + s_L)/2 and Δθ = (s_R - s_L)/b::
+
+    var Δs = k_w² (|s_L| + |s_R|) / 4,  var Δθ = k_w² (|s_L| + |s_R|) / b²,
+    cov(Δs, Δθ) = k_w² (|s_R| - |s_L|) / (2 b)
+
+The systematic errors (unequal wheel diameters E_d, wrong wheelbase E_b) are
+unknown to the filter. Between corrections they act as a bias that grows
+linearly; the model folds them in as extra white noise whose variance per
+metre (per radian turned) equals the squared bias rate times ``correlation``,
+the typical distance (m) between corrections, so the accumulated variance
+over that distance matches the squared bias:
+
+    var Δθ += (e_d / b)² correlation |Δs| + e_b² correlation_turn |Δθ|
+    var Δs += e_s² correlation |Δs|
+
+with ``e_d = |E_d - 1|`` (rad of heading per metre times b), ``e_b = |E_b - 1|``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["OdometryAccumulator", "OdometryNoise", "arc_motion", "compose", "compose_jacobians"]
+
+
+@dataclass(frozen=True)
+class OdometryNoise:
+    """Motion-noise model of the odometry (see the module docstring).
+
+    Attributes:
+        wheel_noise: per-wheel random error k_w, σ = k_w sqrt(|s|) (m^(1/2)).
+        track_width: nominal wheelbase b (m).
+        diameter_bias: |E_d - 1| expected (dimensionless).
+        wheelbase_bias: |E_b - 1| expected (dimensionless).
+        scale_bias: relative error of Δs expected (dimensionless).
+        correlation: distance (m) over which the biases are taken to accumulate.
+        correlation_turn: turn (rad) over which the wheelbase bias accumulates.
+        inflation: common factor on all variances (>= 1 to be conservative).
+    """
+
+    wheel_noise: float = 0.001  # m^(1/2)
+    track_width: float = 0.6  # m
+    diameter_bias: float = 0.0  # dimensionless
+    wheelbase_bias: float = 0.0  # dimensionless
+    scale_bias: float = 0.0  # dimensionless
+    correlation: float = 10.0  # m
+    correlation_turn: float = math.pi  # rad
+    inflation: float = 1.0  # dimensionless
+
+    def __post_init__(self) -> None:
+        for name in ("wheel_noise", "diameter_bias", "wheelbase_bias", "scale_bias"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"OdometryNoise.{name} must be finite and >= 0, got {v!r}")
+        for name in ("track_width", "correlation", "correlation_turn", "inflation"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"OdometryNoise.{name} must be finite and > 0, got {v!r}")
+
+    def covariance(self, ds: float, dtheta: float) -> tuple[float, float, float]:
+        """(var Δs m², cov(Δs, Δθ) m·rad, var Δθ rad²) of one increment."""
+        b = self.track_width
+        s_l = abs(ds - 0.5 * b * dtheta)
+        s_r = abs(ds + 0.5 * b * dtheta)
+        k2 = self.wheel_noise * self.wheel_noise
+        var_s = k2 * (s_l + s_r) / 4.0 + self.scale_bias ** 2 * self.correlation * abs(ds)
+        var_t = (k2 * (s_l + s_r) / (b * b)
+                 + (self.diameter_bias / b) ** 2 * self.correlation * abs(ds)
+                 + self.wheelbase_bias ** 2 * self.correlation_turn * abs(dtheta))
+        cov = k2 * (s_r - s_l) / (2.0 * b)
+        f = self.inflation
+        return f * var_s, f * cov, f * var_t
+
+
+def arc_motion(ds: float, dtheta: float) -> tuple[float, float, float]:
+    """m(Δs, Δθ): the relative motion (m, m, rad) of one arc increment."""
+    half = 0.5 * dtheta
+    k = 1.0 - half * half / 6.0 if abs(half) < 1e-4 else math.sin(half) / half
+    return ds * k * math.cos(half), ds * k * math.sin(half), dtheta
+
+
+def compose(x, u) -> np.ndarray:
+    """x ⊕ u (3,) for pose x (3,) and relative motion u (3,); θ is not wrapped."""
+    th = float(np.ravel(x)[2])
+    c, s = math.cos(th), math.sin(th)
+    x = np.ravel(x)
+    u = np.ravel(u)
+    return np.array([x[0] + c * u[0] - s * u[1], x[1] + s * u[0] + c * u[1], th + u[2]])
+
+
+def compose_jacobians(x, u) -> tuple[np.ndarray, np.ndarray]:
+    """(F, G) = (∂(x ⊕ u)/∂x, ∂(x ⊕ u)/∂u), each (3, 3)."""
+    x = np.ravel(x)
+    u = np.ravel(u)
+    c, s = math.cos(float(x[2])), math.sin(float(x[2]))
+    F = np.array([[1.0, 0.0, -s * u[0] - c * u[1]], [0.0, 1.0, c * u[0] - s * u[1]], [0.0, 0.0, 1.0]])
+    G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return F, G
+
+
+class OdometryAccumulator:
+    """Accumulates odometry increments into one relative motion and its covariance.
+
+    ``u`` (3,) is the motion since the last :meth:`reset` in the frame of the
+    pose at that reset; ``Q`` (3, 3) its covariance. Each :meth:`add` costs a
+    few float operations (no numpy), so it can run every control step.
+
+    Args:
+        noise: the motion-noise model.
+    """
+
+    __slots__ = ("noise", "ux", "uy", "uphi", "q", "steps", "distance")
+
+    def __init__(self, noise: OdometryNoise) -> None:
+        self.noise = noise
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new accumulation (u = 0, Q = 0)."""
+        self.ux = self.uy = self.uphi = 0.0
+        self.q = [0.0] * 6  # upper triangle of Q: xx, xy, xphi, yy, yphi, phiphi
+        self.steps = 0
+        self.distance = 0.0  # m, sum of |Δs|
+
+    @property
+    def u(self) -> np.ndarray:
+        """(3,) accumulated relative motion (m, m, rad)."""
+        return np.array([self.ux, self.uy, self.uphi])
+
+    @property
+    def Q(self) -> np.ndarray:
+        """(3, 3) covariance of :attr:`u`."""
+        a, b, c, d, e, f = self.q
+        return np.array([[a, b, c], [b, d, e], [c, e, f]])
+
+    def add(self, ds: float, dtheta: float) -> None:
+        """Append one increment (Δs m, Δθ rad): u ← u ⊕ m(Δs, Δθ), Q ← F Q Fᵀ + G J Σ Jᵀ Gᵀ.
+
+        ``J = ∂m/∂(Δs, Δθ) ≈ [[cos(Δθ/2), -Δs/2 sin(Δθ/2)], [sin(Δθ/2), Δs/2 cos(Δθ/2)], [0, 1]]``
+        (the sinc factor's derivative is dropped: Δθ per control step is small).
+        """
+        if not (math.isfinite(ds) and math.isfinite(dtheta)):
+            raise ValueError(f"odometry increment must be finite, got ds={ds!r}, dtheta={dtheta!r}")
+        mx, my, mphi = arc_motion(ds, dtheta)
+        c, s = math.cos(self.uphi), math.sin(self.uphi)
+        # F = [[1, 0, f02], [0, 1, f12], [0, 0, 1]]
+        f02 = -s * mx - c * my
+        f12 = c * mx - s * my
+        a, b, cc, d, e, f = self.q
+        # F Q F^T
+        a2 = a + 2 * f02 * cc + f02 * f02 * f
+        b2 = b + f02 * e + f12 * cc + f02 * f12 * f
+        c2 = cc + f02 * f
+        d2 = d + 2 * f12 * e + f12 * f12 * f
+        e2 = e + f12 * f
+        # G J Σ J^T G^T with Σ = [[vs, cst], [cst, vt]]
+        vs, cst, vt = self.noise.covariance(ds, dtheta)
+        h = 0.5 * dtheta
+        ch, sh = math.cos(h), math.sin(h)
+        # J rows in the step frame: jx = (ch, -ds/2 sh), jy = (sh, ds/2 ch), jphi = (0, 1)
+        # rotate rows by the accumulated heading (G)
+        gx = (c * ch - s * sh, -0.5 * ds * (c * sh + s * ch))
+        gy = (s * ch + c * sh, 0.5 * ds * (c * ch - s * sh))
+
+        def quad(p, q):
+            return p[0] * q[0] * vs + (p[0] * q[1] + p[1] * q[0]) * cst + p[1] * q[1] * vt
+
+        gphi = (0.0, 1.0)
+        self.q = [a2 + quad(gx, gx), b2 + quad(gx, gy), c2 + quad(gx, gphi),
+                  d2 + quad(gy, gy), e2 + quad(gy, gphi), f + vt]
+        self.ux += c * mx - s * my
+        self.uy += s * mx + c * my
+        self.uphi += mphi
+        self.steps += 1
+        self.distance += abs(ds)
