@@ -67,6 +67,33 @@ class _LabelledPoly(pymunk.Poly):
     label: str = ""
 
 
+def convex_parts(polygon) -> list[list[tuple[float, float]]]:
+    """Split a simple polygon (K, 2) into convex pieces for :class:`pymunk.Poly`
+    (which would otherwise collide as the polygon's convex hull)."""
+    import pymunk.autogeometry
+
+    pts = [(float(x), float(y)) for x, y in polygon]
+    if _is_convex(pts):
+        return [pts]
+    area2 = sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(pts, pts[1:] + pts[:1]))
+    if area2 < 0:  # make it counter-clockwise
+        pts = pts[::-1]
+    closed = pts + [pts[0]]
+    parts = pymunk.autogeometry.convex_decomposition(closed, 0.0)
+    return [[(p.x, p.y) for p in part[:-1]] for part in parts]
+
+
+def _is_convex(pts: list[tuple[float, float]]) -> bool:
+    n = len(pts)
+    signs = set()
+    for i in range(n):
+        (x0, y0), (x1, y1), (x2, y2) = pts[i], pts[(i + 1) % n], pts[(i + 2) % n]
+        cross = (x1 - x0) * (y2 - y1) - (y1 - y0) * (x2 - x1)
+        if abs(cross) > 1e-12:
+            signs.add(cross > 0)
+    return len(signs) <= 1
+
+
 def build_space(world_map) -> tuple[pymunk.Space, ContactMonitor]:
     """A pymunk space with the map's walls and obstacles as static shapes.
 
@@ -92,11 +119,12 @@ def build_space(world_map) -> tuple[pymunk.Space, ContactMonitor]:
             seg.friction = 0.5
             shapes.append(seg)
     for obstacle in world_map.obstacles:
-        poly = _LabelledPoly(static, [tuple(p) for p in obstacle.polygon])
-        poly.label = obstacle.id
-        poly.collision_type = COLLISION_OBSTACLE
-        poly.friction = 0.5
-        shapes.append(poly)
+        for part in convex_parts(obstacle.polygon):
+            poly = _LabelledPoly(static, part)
+            poly.label = obstacle.id
+            poly.collision_type = COLLISION_OBSTACLE
+            poly.friction = 0.5
+            shapes.append(poly)
     space.add(*shapes)
     monitor = ContactMonitor()
     for other in (COLLISION_WALL, COLLISION_OBSTACLE):

@@ -15,14 +15,16 @@ from envs.agv_env import AGVEnv
 from envs.config import EnvConfig
 
 #: id -> default keyword arguments
-ENV_SPECS: dict[str, dict] = {
-    "agvsim/PlantFloor-v0": {"map": "plant_floor", "task": "goto"},
-    "agvsim/Corridor-v0": {"map": "corridor", "task": "goto", "max_episode_steps": 1500},
-    "agvsim/ActiveLocalization-v0": {"map": "plant_floor", "task": "localize", "max_episode_steps": 1000},
+#: id -> (default keyword arguments, max_episode_steps)
+ENV_SPECS: dict[str, tuple[dict, int]] = {
+    "agvsim/PlantFloor-v0": ({"map": "plant_floor", "task": "goto"}, 3000),
+    "agvsim/Corridor-v0": ({"map": "corridor", "task": "goto"}, 1500),
+    "agvsim/ActiveLocalization-v0": ({"map": "plant_floor", "task": "localize"}, 1000),
 }
 
-for _env_id, _kwargs in ENV_SPECS.items():
+for _env_id, (_kwargs, _steps) in ENV_SPECS.items():
     if _env_id not in registry:
-        register(id=_env_id, entry_point="envs.agv_env:AGVEnv", kwargs=dict(_kwargs))
+        register(id=_env_id, entry_point="envs.agv_env:AGVEnv", kwargs=dict(_kwargs),
+                 max_episode_steps=_steps)
 
 __all__ = ["AGVEnv", "ENV_SPECS", "EnvConfig"]

@@ -55,18 +55,22 @@ class AGVEnv(gym.Env):
     ## Episode end
     ``terminated``: ``goto`` when the true pose is within ``goal_radius`` of
     the goal; with ``terminate_on_collision``, at the first contact.
-    ``truncated``: after ``max_episode_steps`` policy steps.
+    ``truncated``: after ``max_episode_steps`` policy steps (gymnasium's
+    ``TimeLimit``; registered defaults: PlantFloor 3000, Corridor 1500,
+    ActiveLocalization 1000; override with ``gymnasium.make(...,
+    max_episode_steps=N)``).
 
     ## Arguments
     ``gymnasium.make("agvsim/PlantFloor-v0", map=..., route=..., task=...,
     odometry="typical", localization="ekf" | "odometry" | "truth",
     camera_rate=4.0, lens=16, lighting_randomization=0.0, observe_image=False,
-    policy_rate=10.0, max_episode_steps=3000, goal_radius=0.5,
+    policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
     error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
     ``ValueError``. See :class:`envs.config.EnvConfig` for units.
 
     ## Info
+    ``reset`` adds ``start_station`` and ``goal_station`` (ids). Every step:
     ``true_pose``, ``estimated_pose``, ``odometry_pose`` (each (3,) float64,
     map frame), ``position_error`` (m), ``observations`` ({"accepted": n,
     "rejected": m} this step), ``collision`` (bool).
@@ -148,6 +152,8 @@ class AGVEnv(gym.Env):
         pose = self._episode.believed_pose
         obs = self._observation(pose, self._episode.covariance, np.zeros(2))
         info = self._info(accepted=0, rejected=0, collision=False)
+        info["start_station"] = start_id
+        info["goal_station"] = goal.id if goal is not None else None
         return obs, info
 
     def step(self, action):
@@ -179,7 +185,7 @@ class AGVEnv(gym.Env):
             reward += 1.0 / (1.0 + (err / cfg.error_scale) ** 2)
         if cfg.terminate_on_collision and step.collided:
             terminated = True
-        truncated = (not terminated) and self._steps >= cfg.max_episode_steps
+        truncated = False  # the step limit is gymnasium's TimeLimit (max_episode_steps)
         obs = self._observation(step.believed_pose, step.covariance, step.wheel_speeds)
         info = self._info(step.accepted, step.rejected, step.collided)
         return obs, float(reward), bool(terminated), bool(truncated), info

@@ -27,7 +27,6 @@ class EnvConfig:
             per episode (dimensionless spread, 0 disables it).
         observe_image: add the latest camera frame to the observation.
         policy_rate: actions per second (Hz); a whole divisor of the physics rate.
-        max_episode_steps: policy steps before ``truncated``.
         goal_radius: the goal is reached within this distance (m).
         terminate_on_collision: end the episode at the first contact.
         collision_penalty: reward subtracted per contact begin.
@@ -45,7 +44,6 @@ class EnvConfig:
     lighting_randomization: float = 0.0  # dimensionless
     observe_image: bool = False
     policy_rate: float = 10.0  # Hz
-    max_episode_steps: int = 3000  # policy steps
     goal_radius: float = 0.5  # m
     terminate_on_collision: bool = False
     collision_penalty: float = 1.0  # reward units per contact
@@ -69,8 +67,6 @@ class EnvConfig:
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not isinstance(self.max_episode_steps, int) or self.max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be an integer >= 1, got {self.max_episode_steps!r}")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "EnvConfig":

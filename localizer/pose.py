@@ -225,50 +225,28 @@ def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh
     return pred, J
 
 
-def _solve_spd(A, b):
-    """Solve the symmetric positive definite system ``A x = b`` (lists) by Cholesky."""
-    n = len(b)
-    Lm = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i + 1):
-            v = A[i][j] - sum(Lm[i][k] * Lm[j][k] for k in range(j))
-            if i == j:
-                if v <= 0.0:
-                    raise np.linalg.LinAlgError("normal matrix not positive definite")
-                Lm[i][i] = math.sqrt(v)
-            else:
-                Lm[i][j] = v / Lm[j][j]
-    y = [0.0] * n
-    for i in range(n):
-        y[i] = (b[i] - sum(Lm[i][k] * y[k] for k in range(i))) / Lm[i][i]
-    x = [0.0] * n
-    for i in reversed(range(n)):
-        x[i] = (y[i] - sum(Lm[k][i] * x[k] for k in range(i + 1, n))) / Lm[i][i]
-    return x
+def _gauss_newton(p, meas: np.ndarray, wv: np.ndarray, args, iterations: int):
+    """Weighted Gauss-Newton from ``p`` (5,); returns ``(p, chi2, JtWJ (5, 5))``.
 
-
-def _gauss_newton(p, meas, wv, args, iterations: int):
-    """Weighted Gauss-Newton from ``p`` (5,); returns ``(p, chi2, JtWJ (5, 5) array)``."""
-    p = list(p)
-    nm = len(meas)
+    Stops when the range changes by less than 1e-7 of itself and alpha by less
+    than 1e-7 rad (far below the noise), after one more pass for the final Jacobian.
+    """
+    p = [float(v) for v in p]
     for it in range(iterations + 1):
         pred, J = _model(p, *args)
-        r = [(meas[i] - pred[i]) * wv[i] for i in range(nm)]
-        Jw = [[v * wv[i] for v in J[i]] for i in range(nm)]
-        A = [[sum(Jw[i][a] * Jw[i][b] for i in range(nm)) for b in range(5)] for a in range(5)]
+        r = (meas - np.array(pred)) * wv
+        Jw = np.array(J) * wv[:, None]
+        A = Jw.T @ Jw
         if it == iterations:
             break
-        g = [sum(Jw[i][a] * r[i] for i in range(nm)) for a in range(5)]
-        for a in range(5):
-            A[a][a] *= 1.0 + 1e-12
-        dp = _solve_spd(A, g)
+        dp = np.linalg.solve(A, Jw.T @ r).tolist()
         p = [p[i] + dp[i] for i in range(5)]
         p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
         if not p[1] > 0:
             raise ValueError("fit left the half-space in front of the camera")
-        if abs(dp[1]) < 1e-7 * p[1] and abs(dp[2]) < 1e-8:
+        if abs(dp[1]) < 1e-7 * p[1] and abs(dp[2]) < 1e-7:
             iterations = it + 1  # one more pass for the final Jacobian
-    return np.array(p), sum(v * v for v in r), np.array(A)
+    return np.array(p), float(r @ r), A
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -296,16 +274,16 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     scaled up by the reduced chi-square when it exceeds one, mapped to
     (d, beta, alpha).
     """
-    meas = [float(v) for v in np.concatenate([m.edges_x, m.top_y, m.bottom_y])]
+    meas = np.concatenate([m.edges_x, m.top_y, m.bottom_y]).astype(float)
     sig2 = np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]) ** 2 + sigma_floor ** 2
-    wv = [float(v) for v in 1.0 / np.sqrt(sig2)]
+    wv = 1.0 / np.sqrt(sig2)
     p0, cands = _initial(m, camera, target, positive)
     sv, sh = _edge_signs(positive)
     t = tuple(float(v) for v in (np.asarray(m.bar_cx, float) - camera.cx) / camera.fx)
     args = (camera.fx, camera.fy, camera.cx, camera.cy, tuple(float(v) for v in target_edges_u(target)), t,
             0.5 * target.bar_height, tuple(float(v) for v in sv), tuple(float(v) for v in sh))
     p, chi2, JtJ = _gauss_newton(p0, meas, wv, args, iterations)
-    dof = len(meas) - 5
+    dof = meas.size - 5
     scale = max(1.0, chi2 / dof)
     cov_p = np.linalg.inv(JtJ) * scale
     # the mirror solution (§4.2.2): fit it too unless the first fit's own alpha variance

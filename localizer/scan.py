@@ -49,11 +49,10 @@ def pixel_thresholds(lines: np.ndarray, p: DetectorParams, window: int) -> np.nd
     kernel = np.ones((1, int(window)), np.uint8)
     hi = cv2.dilate(lines, kernel, borderType=cv2.BORDER_REPLICATE)
     lo = cv2.erode(lines, kernel, borderType=cv2.BORDER_REPLICATE)
-    contrast = hi - lo
-    mid = hi - (contrast >> 1)  # (hi + lo + 1) // 2 without overflow
+    contrast = cv2.subtract(hi, lo)
+    mid = cv2.subtract(hi, contrast >> 1)  # (hi + lo + 1) // 2 without overflow
     flat = contrast < p.local_contrast
-    if flat.any():
-        mid[flat] = np.broadcast_to(line_thresholds(lines, p)[:, None], mid.shape)[flat]
+    np.copyto(mid, line_thresholds(lines, p)[:, None], where=flat)
     return mid
 
 
@@ -153,18 +152,15 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     n = l.size
     if n < 5:
         return _EMPTY
+    line = runs.line
     longr = l >= p.min_bar_px
     # first-bar index i in 1..n-4; runs i-1 .. i+3 on one line (lines are sorted)
-    i = np.flatnonzero(longr[1:-3] & longr[2:-2] & longr[3:-1]) + 1
-    if i.size == 0:
-        return _EMPTY
-    line = runs.line
-    i = i[line[i - 1] == line[i + 3]]
+    cand = longr[1:-3] & longr[2:-2] & longr[3:-1] & (line[:-4] == line[4:])
+    i = np.flatnonzero(cand) + 1
     if i.size == 0:
         return _EMPTY
     ok = near_equal(l[i], l[i + 1], l[i + 2], p)
-    s = l[i] + l[i + 1] + l[i + 2]
-    ok &= 3.0 * np.minimum(l[i - 1], l[i + 3]) >= p.min_margin_ratio * s
+    ok &= 3 * np.minimum(l[i - 1], l[i + 3]) >= p.min_margin_ratio * (l[i] + l[i + 1] + l[i + 2])
     i = i[ok]
     if i.size == 0:
         return _EMPTY
@@ -211,10 +207,11 @@ def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
     Returns ``(mean (T, 3), std (T, 3), margin_mean (T, 2), periodic_mean (T, 2))``.
     """
     k, w = lines.shape
-    v = lines.astype(np.int64)
-    cs = np.zeros((k, w + 1), np.int64)
+    used, li_all = np.unique(tri.line, return_inverse=True)
+    v = lines[used].astype(np.int32)
+    cs = np.zeros((used.size, w + 1), np.int32)
     np.cumsum(v, axis=1, out=cs[:, 1:])
-    cs2 = np.zeros((k, w + 1), np.int64)
+    cs2 = np.zeros((used.size, w + 1), np.int32)
     np.cumsum(v * v, axis=1, out=cs2[:, 1:])
     xb = tri.x
     a = xb[:, :3]
@@ -223,7 +220,7 @@ def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
     m = np.minimum(2, (ln - 1) // 2)
     a2 = a + m
     b2 = b - m
-    li = tri.line[:, None]
+    li = li_all[:, None]
     cnt = (b2 - a2).astype(np.float64)
     s1 = (cs[li, b2] - cs[li, a2]) / cnt
     s2 = (cs2[li, b2] - cs2[li, a2]) / cnt
@@ -231,7 +228,7 @@ def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
     mw = np.maximum(1, ln.sum(axis=1) // 12)
     x0 = np.maximum(xb[:, 0] - mw, 0)
     x3 = np.minimum(xb[:, 3] + mw, w)
-    l0 = tri.line
+    l0 = li_all
     left = (cs[l0, xb[:, 0]] - cs[l0, x0]) / np.maximum(xb[:, 0] - x0, 1)
     right = (cs[l0, x3] - cs[l0, xb[:, 3]]) / np.maximum(x3 - xb[:, 3], 1)
     per = tri.periodic

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -297,11 +298,16 @@ def _by_id(items, item_id: str, what: str):
 # ====================================================================== files
 
 def maps_dir() -> Path:
-    """The folder of shipped maps: ``$AGVSIM_MAPS_DIR`` if set, else the repo's ``maps/``."""
+    """The folder of shipped maps: ``$AGVSIM_MAPS_DIR`` if set, else the repo's
+    ``maps/`` (editable install), else ``<prefix>/share/agvsim/maps`` (wheel)."""
     override = os.environ.get("AGVSIM_MAPS_DIR")
     if override:
         return Path(override)
-    return Path(__file__).resolve().parents[2] / "maps"
+    repo = Path(__file__).resolve().parents[2] / "maps"
+    if repo.is_dir():
+        return repo
+    # a non-editable install ships the maps as data files under the prefix
+    return Path(sys.prefix) / "share" / "agvsim" / "maps"
 
 
 def shipped_maps() -> list[str]:

@@ -57,3 +57,15 @@ def test_backing_away_ends_the_contact():
     for _ in range(30):
         sim.step(-0.5, 0.0)
     assert not sim.contacts.in_contact
+
+
+def test_concave_obstacle_collides_as_its_shape_not_its_hull():
+    """An L-shaped machine: the vehicle drives into the notch, which the
+    convex hull would have filled."""
+    # L shape: x in [4, 8], y in [-3, 3] minus the notch x in [4, 7], y in [-1, 1]... as a U opening west
+    u_shape = [[4.0, -3.0], [8.0, -3.0], [8.0, 3.0], [4.0, 3.0], [4.0, 1.5], [7.0, 1.5], [7.0, -1.5], [4.0, -1.5]]
+    sim = make_sim(world=bare_world(obstacles=[("press", u_shape)]))
+    for _ in range(100):
+        sim.step(1.0, 0.0)
+    front = chassis_corners(sim)[:, 0].max()
+    assert 6.9 <= front <= 7.0 + 0.005  # stopped by the back of the notch, not at its mouth (x = 4)

@@ -93,6 +93,11 @@ def test_load_by_path_string_and_pathlike(tmp_path):
     assert load_map(path).source == path
 
 
+def test_shipped_file_name_works_from_any_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert load_map("corridor.yaml").source == maps_dir() / "corridor.yaml"
+
+
 def test_maps_dir_override(tmp_path, monkeypatch):
     (tmp_path / "tiny.yaml").write_text(textwrap.dedent(ROOM), encoding="utf-8")
     monkeypatch.setenv("AGVSIM_MAPS_DIR", str(tmp_path))

@@ -1,0 +1,135 @@
+"""Gymnasium conventions users will test on the agvsim environments."""
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import envs
+
+FAST = {"localization": "odometry"}
+
+
+@pytest.mark.parametrize("env_id", sorted(envs.ENV_SPECS))
+def test_check_env_passes_without_warnings(env_id):
+    env = gym.make(env_id, **FAST)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_string_entry_point_without_prior_import():
+    env = gym.make("envs:agvsim/Corridor-v0", **FAST)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert set(info) >= {"true_pose", "estimated_pose", "odometry_pose", "position_error",
+                         "observations", "collision"}
+
+
+def test_unknown_option_is_an_error_with_a_suggestion():
+    with pytest.raises(ValueError, match="localisation.*did you mean 'localization'"):
+        gym.make("agvsim/PlantFloor-v0", localisation="ekf")
+
+
+@pytest.mark.parametrize("bad", [{"localization": "gps"}, {"camera_rate": 0.0}, {"lens": 35},
+                                 {"odometry": "new"}])
+def test_bad_option_values_are_errors(bad):
+    with pytest.raises(ValueError):
+        gym.make("agvsim/PlantFloor-v0", **bad)
+
+
+def rollout(env, seed, n=60):
+    obs, _ = env.reset(seed=seed)
+    actions = np.random.default_rng(seed).uniform(-1, 1, (n, 2)).astype(np.float32)
+    trace = [obs["pose"].copy()]
+    for a in actions:
+        obs, r, term, trunc, info = env.step(a)
+        trace.append(np.concatenate([obs["pose"], [r], info["true_pose"]]))
+        if term or trunc:
+            break
+    return trace
+
+
+def test_same_seed_steps_identically():
+    a = gym.make("agvsim/PlantFloor-v0", **FAST)
+    b = gym.make("agvsim/PlantFloor-v0", **FAST)
+    ta, tb = rollout(a, 5), rollout(b, 5)
+    assert len(ta) == len(tb)
+    assert all(np.array_equal(x, y) for x, y in zip(ta, tb))
+    tc = rollout(a, 6)
+    assert not all(np.array_equal(x, y) for x, y in zip(ta, tc))
+
+
+def test_pickle_round_trip_reproduces_reset_and_step():
+    env = gym.make("agvsim/Corridor-v0", **FAST).unwrapped
+    clone = pickle.loads(pickle.dumps(env))
+    ta, tb = rollout(env, 11), rollout(clone, 11)
+    assert all(np.array_equal(x, y) for x, y in zip(ta, tb))
+
+
+def test_actions_are_clipped_and_nan_is_an_error():
+    env = gym.make("agvsim/PlantFloor-v0", **FAST).unwrapped
+    env.reset(seed=0)
+    for _ in range(40):
+        _, _, _, _, info = env.step(np.array([5.0, 0.0]))
+    # 5x the limit is clipped to the vehicle's top speed (1.5 m/s)
+    speed = np.mean(env._episode.sim.vehicle.velocity[0])
+    assert speed == pytest.approx(1.5, abs=1e-6)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([np.nan, 0.0]))
+
+
+def test_goal_reward_is_progress_on_the_true_pose():
+    env = gym.make("agvsim/Corridor-v0", **FAST, time_cost=0.0).unwrapped
+    env.reset(seed=3)
+    before = env._goal_distance()
+    _, reward, _, _, _ = env.step(np.array([0.5, 0.0]))
+    assert reward == pytest.approx(before - env._goal_distance(), abs=1e-12)
+
+
+def test_truth_mode_observes_the_true_pose_and_odometry_does_not():
+    truth = gym.make("agvsim/PlantFloor-v0", localization="truth", odometry="worn").unwrapped
+    odo = gym.make("agvsim/PlantFloor-v0", localization="odometry", odometry="worn").unwrapped
+    for env in (truth, odo):
+        env.reset(seed=2)
+        for _ in range(150):
+            obs, _, _, _, info = env.step(np.array([0.7, 0.3]))
+        env._last = (obs, info)
+    obs, info = truth._last
+    assert np.allclose(obs["pose"], info["true_pose"], atol=1e-4)
+    assert info["position_error"] == 0.0
+    obs, info = odo._last
+    assert info["position_error"] > 0.01
+    assert np.allclose(obs["pose"], info["odometry_pose"], atol=1e-4)
+    assert np.all(np.linalg.eigvalsh(obs["covariance"].astype(float)) >= -1e-9)
+    assert obs["covariance"][0, 0] > 0
+
+
+def test_truncated_at_the_step_limit():
+    env = gym.make("agvsim/PlantFloor-v0", **FAST, max_episode_steps=5)
+    env.reset(seed=0)
+    flags = [env.step(np.zeros(2))[3] for _ in range(5)]
+    assert flags == [False] * 4 + [True]
+
+
+def test_rgb_array_render_shows_the_floor():
+    env = gym.make("agvsim/PlantFloor-v0", **FAST, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.array([0.5, 0.0]))
+    img = env.render()
+    assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
+    assert img.std() > 10
+
+
+def test_async_vector_env_steps():
+    vec = gym.make_vec("agvsim/Corridor-v0", num_envs=2, vectorization_mode="async", **FAST)
+    try:
+        obs, _ = vec.reset(seed=[1, 2])
+        assert obs["pose"].shape == (2, 3)
+        obs, rew, term, trunc, info = vec.step(np.zeros((2, 2), np.float32))
+        assert rew.shape == (2,)
+    finally:
+        vec.close()
