@@ -23,7 +23,9 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q -p no:cacheprovider
 
 bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/agvsim bench sim
+	$(BIN)/agvsim bench localizer
 
 clean:
 	rm -rf $(VENV) out *.egg-info

@@ -15,6 +15,7 @@ from agvsim.commands._output import add_json_flag, emit_json
 BENCHMARKS: dict[str, str] = {
     "sim": "physics + odometry steps per second on one core (no rendering)",
     "localizer": "localizer ms per frame, against ArUco+solvePnP and AprilTag 3",
+    "env": "Gymnasium env steps per second, real-time factor and peak memory",
 }
 
 
