@@ -12,7 +12,7 @@ import importlib
 import sys
 
 #: Subcommand modules under agvsim.commands, in the order --help lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "reproduce", "bench")
+COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "reproduce", "render", "bench", "drift")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -48,13 +48,13 @@ def write_debug_images(directory: str, image: np.ndarray, camera, p, stacks, ver
     red, verified in green) and ``result.png`` into ``directory``."""
     import cv2
 
-    from localizer.scan import line_thresholds
+    from localizer.scan import threshold_lines
 
     os.makedirs(directory, exist_ok=True)
     rows = np.arange(0, image.shape[0], int(p.coarse_step))
     lines = image[rows]
     binary = np.full(image.shape, 128, np.uint8)
-    binary[rows] = np.where(lines >= line_thresholds(lines, p)[:, None], 255, 0)
+    binary[rows] = np.where(threshold_lines(lines, p, int(p.threshold_window)), 255, 0)
     cv2.imwrite(os.path.join(directory, "coarse.png"), binary)
     vis = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
     for group, colour in ((stacks, (0, 0, 255)), (verified, (0, 255, 0))):

@@ -42,7 +42,7 @@ class DetectorParams:
     # --- edges (§4.6)
     edge_window: int = 9  # px, thesis neighbourhood of a rough edge
     # --- exact pose covariance
-    edge_sigma_floor: float = 0.03  # px, model error added to every averaged edge position
+    edge_sigma_floor: float = 0.05  # px, model error added to every averaged edge position
     # --- misc
     max_targets: int = 32  # most targets reported per frame
     max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)
@@ -55,6 +55,8 @@ class DetectorParams:
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"DetectorParams.{f.name} must be a finite non-negative number, got {v!r}")
+        if self.threshold_window is not None and self.threshold_window < 3:
+            raise ValueError("DetectorParams.threshold_window must be >= 3 px")
         if self.contrast_window < 2:
             raise ValueError("DetectorParams.contrast_window must be >= 2 px")
         if self.edge_window < 3:

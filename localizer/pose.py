@@ -170,9 +170,12 @@ def _initial(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: 
     alpha0 = min(cands, key=lambda a: abs(a - alpha_h))
     c, s = math.cos(alpha0), math.sin(alpha0)
     # X, Z given alpha: X - t Z = -u (c + t s), least squares over the four edges
-    M = np.stack([np.ones(4), -tx], axis=1)
     rhs = -u * (c + tx * s)
-    (X, Z), *_ = np.linalg.lstsq(M, rhs, rcond=None)
+    # normal equations of [1, -t] (X, Z) = rhs, closed form
+    n4, st_, stt = 4.0, float(tx.sum()), float(tx @ tx)
+    sr, str_ = float(rhs.sum()), float(tx @ rhs)
+    det = n4 * stt - st_ * st_
+    X, Z = ((stt * sr - st_ * str_) / det, (st_ * sr - n4 * str_) / det) if abs(det) > 1e-15 else (0.0, -1.0)
     if not Z > 0:
         X, Z = float(np.mean(px)), float(np.mean(pz))
     uu = (t * Z - X) / (c + t * s)
@@ -193,7 +196,7 @@ def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh
     bar centre columns, whose rays ``x/z = t_j`` meet the target plane at range
     ``z_j = (Z cos a + X sin a) / (cos a + t_j sin a)``:
     ``y = cy + fy (Y -+ H/2) / z_j + delta sh``. Returns ``(pred (8,), J (8, 5))``
-    as lists.
+    as lists (columns: X, Z, alpha, Y, delta).
     """
     X, Z, a, Y, dl = p
     c, s = math.cos(a), math.sin(a)
@@ -218,39 +221,64 @@ def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh
         dq_dz = -g * c * iD * iD
         dq_da = ((tj * c - s) * D - g * dD) * iD * iD
         for yv, dst, shv in ((Y - hh, rows_t, sh[0]), (Y + hh, rows_b, sh[1])):
-            dst.append((cy + fy * yv * q + dl * shv, (fy * yv * dq_dx, fy * yv * dq_dz, fy * yv * dq_da, fy * q, shv)))
+            dst.append((cy + fy * yv * q + dl * shv,
+                        (fy * yv * dq_dx, fy * yv * dq_dz, fy * yv * dq_da, fy * q, shv)))
     for pr, jr in rows_t + rows_b:
         pred.append(pr)
         J.append(jr)
     return pred, J
 
 
-def _gauss_newton(p, meas: np.ndarray, wv: np.ndarray, args, iterations: int):
-    """Weighted Gauss-Newton from ``p`` (5,); returns ``(p, chi2, JtWJ (5, 5))``.
+def _gauss_newton(starts, meas: np.ndarray, wv: np.ndarray, args, iterations: int):
+    """Weighted Gauss-Newton from each start in ``starts`` (list of (5,)), all advanced together
+    (one batched solve per iteration). Returns a list of ``(p (5,), chi2, JtWJ (5, 5))``; a start
+    that fails (singular system, behind the camera) is dropped.
 
-    Stops when the range changes by less than 1e-7 of itself and alpha by less
-    than 1e-7 rad (far below the noise), after one more pass for the final Jacobian.
+    A fit stops when the range changes by less than 1e-5 of itself and alpha by less
+    than 1e-5 rad (far below the noise), after one more pass for the final Jacobian.
     """
-    p = [float(v) for v in p]
-    for it in range(iterations + 1):
-        pred, J = _model(p, *args)
-        r = (meas - np.array(pred)) * wv
-        Jw = np.array(J) * wv[:, None]
-        A = Jw.T @ Jw
-        if it == iterations:
+    ps = [[float(v) for v in p] for p in starts]
+    live = list(range(len(ps)))
+    last = [None] * len(ps)
+    left = [iterations + 1] * len(ps)
+    while live:
+        preds, Js = [], []
+        for i in live:
+            pr, J = _model(ps[i], *args)
+            preds.append(pr)
+            Js.append(J)
+        r = (meas[None, :] - np.array(preds)) * wv[None, :]  # (n, 8)
+        Jw = np.array(Js) * wv[None, :, None]  # (n, 8, 5)
+        Jt = Jw.transpose(0, 2, 1)
+        A = Jt @ Jw  # (n, 5, 5)
+        for k, i in enumerate(live):
+            last[i] = (float(r[k] @ r[k]), A[k])
+            left[i] -= 1
+        step = [k for k, i in enumerate(live) if left[i] > 0]
+        if not step:
             break
-        dp = np.linalg.solve(A, Jw.T @ r).tolist()
-        p = [p[i] + dp[i] for i in range(5)]
-        p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
-        if not p[1] > 0:
-            raise ValueError("fit left the half-space in front of the camera")
-        if abs(dp[1]) < 1e-7 * p[1] and abs(dp[2]) < 1e-7:
-            iterations = it + 1  # one more pass for the final Jacobian
-    return np.array(p), float(r @ r), A
+        try:
+            dp = np.linalg.solve(A[step], (Jt[step] @ r[step][:, :, None]))[:, :, 0]
+        except np.linalg.LinAlgError:
+            return []
+        nxt = []
+        for k, d in zip(step, dp.tolist()):
+            i = live[k]
+            p = [ps[i][j] + d[j] for j in range(5)]
+            p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
+            if not p[1] > 0:
+                left[i] = -1  # left the half-space in front of the camera
+                continue
+            ps[i] = p
+            if abs(d[1]) < 1e-5 * p[1] and abs(d[2]) < 1e-5:
+                left[i] = min(left[i], 1)  # one more pass for the final Jacobian
+            nxt.append(i)
+        live = nxt
+    return [(np.array(ps[i]), last[i][0], last[i][1]) for i in range(len(ps)) if left[i] >= 0 and last[i]]
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
-               sigma_floor: float = 0.03, iterations: int = 8) -> PoseEstimate:
+               sigma_floor: float = 0.05, iterations: int = 8) -> PoseEstimate:
     """Perspective-exact pose by weighted Gauss-Newton over every measured edge.
 
     Unknowns ``(X, Z, alpha, Y, delta)``: target centre (m), orientation (rad), and
@@ -262,9 +290,8 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     §4.2.2; the mirror solution about the line of sight) and only the small
     bar-height difference separates them. The fit is therefore started from
     the root of Appendix A's analytic solution (eq A.14) nearer the bar-height
-    estimate, and again from the other root unless the first fit's own alpha
-    variance puts that root beyond 8 standard deviations; the better minimum is
-    reported. When the other one is not ruled out (chi-square difference below
+    estimate and again from the other root (unless the two are within 0.5 deg);
+    the better minimum is reported. When the other one is not ruled out (chi-square difference below
     16) the covariance is widened by the separation of the two minima, weighted
     by their relative likelihood, so that it says honestly how little the image
     tells about alpha.
@@ -282,26 +309,22 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     t = tuple(float(v) for v in (np.asarray(m.bar_cx, float) - camera.cx) / camera.fx)
     args = (camera.fx, camera.fy, camera.cx, camera.cy, tuple(float(v) for v in target_edges_u(target)), t,
             0.5 * target.bar_height, tuple(float(v) for v in sv), tuple(float(v) for v in sh))
-    p, chi2, JtJ = _gauss_newton(p0, meas, wv, args, iterations)
-    dof = meas.size - 5
-    scale = max(1.0, chi2 / dof)
-    cov_p = np.linalg.inv(JtJ) * scale
-    # the mirror solution (§4.2.2): fit it too unless the first fit's own alpha variance
-    # puts the other root of A.14 beyond 8 standard deviations
+    dof = meas.size - p0.size
+    # both roots of A.14 (§4.2.2: the mirror solution), fitted side by side
     other = cands[1] if abs(cands[0] - p0[2]) < abs(cands[1] - p0[2]) else cands[0]
-    sols = [(p, chi2, JtJ)]
-    if abs(other - p[2]) > math.radians(0.5):
+    starts = [p0]
+    if abs(other - p0[2]) > math.radians(0.5):
         p1 = p0.copy()
         p1[2] = other
-        try:
-            sols.append(_gauss_newton(p1, meas, wv, args, iterations))
-        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError):
-            pass
+        starts.append(p1)
+    sols = _gauss_newton(starts, meas, wv, args, iterations)
+    if not sols:
+        raise np.linalg.LinAlgError("no pose fit converged")
+    sols.sort(key=lambda s: s[1])
+    p, chi2, JtJ = sols[0]
+    scale = max(1.0, chi2 / dof)
+    cov_p = np.linalg.inv(JtJ) * scale
     if len(sols) > 1:
-        sols.sort(key=lambda s: s[1])
-        p, chi2, JtJ = sols[0]
-        scale = max(1.0, chi2 / dof)
-        cov_p = np.linalg.inv(JtJ) * scale
         q, chi2q, _ = sols[1]
         dchi = (chi2q - chi2) / scale
         sep = q[:3] - p[:3]

@@ -1,16 +1,21 @@
 """Search (coarse + fine, §4.4.1), grouping and verification (§4.5.2) of candidates.
 
 A candidate target is a *stack*: consecutive image rows each holding a
-matching bar-gap-bar triple. The coarse scan thresholds, run-length codes and
-searches every ``N``-th line in one batch (:mod:`localizer.scan`); each
-triple's grey levels on its line are then checked for all triples at once
-(contrast between the runs, uniform runs, light margins: the cheap part of
-§4.5.2), so that only plausible seeds reach the fine search. The fine search
-of the thesis walks up and down line by line from a coarse hit until no line
-matches; here the lines that walk could visit are thresholded as one small
-region of interest at the seed's own midway level, and on each line the three
-runs around the seed's gap are found from the cumulative count of
-transitions -- the same rows and runs, without a Python loop per line.
+matching bar-gap-bar triple. Work per frame, in order of cost:
+
+1. coarse scan: every ``N``-th line thresholded, run-length coded and searched
+   for triples in one batch (:mod:`localizer.scan`);
+2. every triple's grey levels on its own line, all triples at once: contrast
+   between the runs, light margins, no grating (the cheap part of §4.5.2);
+3. the minimum height and aspect tests in advance (:func:`_tall_enough`): 11
+   pixels across each surviving hit on every other line around it, all hits at once;
+4. per remaining hit, the fine search of the thesis -- which walks up and down
+   line by line from the hit until no line matches -- as one small region of
+   interest thresholded at the hit's own midway level and run-length coded at
+   once; on each line the runs around the hit's gap are looked up
+   (:func:`_fine_scan`); then the full verification (:func:`verify_stack`).
+
+Hits inside a stack already found are not searched again (the thesis's grouping).
 """
 from __future__ import annotations
 
@@ -21,7 +26,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import near_equal, scan_lines, segment_levels
+from localizer.scan import near_equal, scan_lines, triple_levels
 from localizer.target import TargetSpec
 
 
@@ -43,6 +48,7 @@ class Stack:
     dark: float = float("nan")
     bright: float = float("nan")
     ends: tuple = ()
+    median_x: np.ndarray | None = None
 
     @property
     def polarity(self) -> str:
@@ -56,19 +62,19 @@ class Stack:
     @property
     def bounds(self) -> np.ndarray:
         """``(4,)`` median run boundaries (columns)."""
+        if self.median_x is not None:
+            return self.median_x
         return np.median(self.x, axis=0)
 
 
-def _max_ratio(camera: Camera, target: TargetSpec, p: DetectorParams) -> float:
-    """Largest plausible image height / width ratio of a target's active area."""
-    ratio = target.active_height / target.active_width * camera.fy / camera.fx
-    return ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance)
-
-
 def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams,
-                stats: DetectionStats) -> list[Stack]:
+                stats: DetectionStats) -> tuple[list[Stack], list[Stack]]:
     """Coarse scan every ``coarse_step``-th row, check the hits' grey levels, fine-scan
-    around each plausible new hit, and return the connected stacks (not yet verified)."""
+    around each plausible new hit and verify the stack found (:func:`verify_stack`).
+
+    Returns ``(candidates, verified)``: every stack found, and the verified ones
+    (with grey levels and bar ends filled in) top to bottom, left to right.
+    """
     h, w = image.shape
     n = int(p.coarse_step)
     coarse_rows = np.arange(0, h, n)
@@ -76,97 +82,158 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     stats.rows_scanned += coarse_rows.size
     stats.runs += nruns
     if len(tri) == 0:
-        return []
-    # grey levels of every triple on its own line (§4.5.2 (2), one line only: lenient)
-    mean, std, marg, pmean = segment_levels(lines, tri, p)
+        return [], []
+    # grey levels of every triple on its own line (§4.5.2 (2)): contrast between the runs,
+    # light margins, no bar-shaded run beyond a margin (five equal runs: a grating)
+    lv = triple_levels(lines, tri)
     pos = tri.positive
-    outer = 0.5 * (mean[:, 0] + mean[:, 2])
-    dark = np.where(pos, outer, mean[:, 1])
-    bright = np.where(pos, mean[:, 1], outer)
-    sgn = np.where(pos, 1.0, -1.0)
-    c = np.minimum(mean[:, 1] - mean[:, 0], mean[:, 1] - mean[:, 2]) * sgn
+    sgn = np.where(pos, 1.0, -1.0)[:, None]
+    outer = 0.5 * (lv[:, 1] + lv[:, 3])
+    dark = np.where(pos, outer, lv[:, 2])
+    bright = np.where(pos, lv[:, 2], outer)
+    span = np.maximum(bright - dark, 1.0)[:, None]
+    f = (lv - dark[:, None]) / span  # 0 = dark level, 1 = bright level
+    f = np.where(pos[:, None], f, 1.0 - f)  # 0 = bar shade, 1 = gap shade, either polarity
+    c = np.minimum(lv[:, 2] - lv[:, 1], lv[:, 2] - lv[:, 3]) * sgn[:, 0]
     need = np.minimum(p.min_contrast, p.min_contrast_ratio * bright)
-    ok = (c >= need) & (c > 0) & (3.3 * std.max(axis=1) <= 1.5 * p.uniformity)
-    # the margins next to the outer edges have the gap's shade
-    mfrac = (marg - dark[:, None]) / np.maximum(bright - dark, 1.0)[:, None]
-    ok &= np.where(pos, mfrac.min(axis=1) >= 0.35, mfrac.max(axis=1) <= 0.65)
-    if p.reject_periodic:
-        # a flagged run beyond a margin that has the bars' shade: five equal runs, a grating
-        pfrac = (pmean - dark[:, None]) / np.maximum(bright - dark, 1.0)[:, None]
-        with np.errstate(invalid="ignore"):
-            barlike = np.where(pos[:, None], pfrac < 0.3, pfrac > 0.7) & ~np.isnan(pmean)
-        ok &= ~barlike.any(axis=1)
+    with np.errstate(invalid="ignore"):
+        ok = (c >= need) & (c > 0) & (np.minimum(f[:, 0], f[:, 4]) >= 0.35)
+        if p.reject_periodic:
+            ok &= ~(f[:, 5] < 0.3) & ~(f[:, 6] < 0.3)
     seeds = np.flatnonzero(ok)
     if seeds.size:
         lo_ratio = target.active_height / target.active_width * camera.fy / camera.fx * (1.0 - p.aspect_tolerance)
-        seeds = seeds[_tall_enough(image, tri, seeds, dark, bright, p, lo_ratio)]
+        tall, top, bottom = _tall_enough(image, tri, seeds, 0.5 * (dark + bright), bright - dark, p, lo_ratio)
+        seeds, top, bottom = seeds[tall], top[tall], bottom[tall]
     stats.seeds += int(seeds.size)
     if seeds.size == 0:
-        return []
-    max_ratio = _max_ratio(camera, target, p)
+        return [], []
     thr_all = 0.5 * (dark + bright)
+    # best-shaped triples first (the runs most nearly equal): where a margin, a bar and the
+    # gap pose as a triple of the other polarity, the true triple is then searched first
+    l3 = np.diff(tri.x[seeds], axis=1)
+    order = np.argsort((l3.max(axis=1) - l3.min(axis=1)) / l3.max(axis=1), kind="stable")
+    seeds, top, bottom = seeds[order], top[order].tolist(), bottom[order].tolist()
     stacks: list[Stack] = []
-    taken: list[tuple[int, int, int, int, bool]] = []  # (row0, row1, x0, x1, positive) of stacks found
+    verified: list[Stack] = []
+    taken: list[tuple[int, int, int, int, bool, bool]] = []  # (row0, row1, x0, x1, positive, verified)
     ys = tri.y.tolist()
     xbs = tri.x.tolist()
     g = 2 + int(p.max_row_gap)  # a hit this near a stack's end belongs to it (blurred end lines)
-    for k in seeds.tolist():
+    for k, ya, yb in zip(seeds.tolist(), top, bottom):
         y = ys[k]
         xb = xbs[k]
         pk = bool(pos[k])
-        if any(r0 - g <= y <= r1 + g and xb[1] < c1 and xb[2] > c0 and pp == pk for r0, r1, c0, c1, pp in taken):
+        # skip hits inside a stack already searched: of the same polarity, or of either
+        # polarity once verified (a margin-bar-gap triple of a target looks like the other one)
+        if any(r0 - g <= y <= r1 + g and xb[1] < c1 and xb[2] > c0 and (pp == pk or vv)
+               for r0, r1, c0, c1, pp, vv in taken):
             continue
-        if len(stacks) >= p.max_candidates:
+        if len(stacks) >= p.max_candidates or len(verified) >= p.max_targets:
             break
-        st = _fine_scan(image, y, xb, pk, float(thr_all[k]), p, max_ratio, stats)
+        st = _fine_scan(image, y, xb, pk, float(thr_all[k]), p, (ya, yb), stats)
         if st is None:
             continue
         stacks.append(st)
         stats.candidates += 1
-        taken.append((int(st.rows[0]), int(st.rows[-1]), int(st.x[:, 0].min()), int(st.x[:, 3].max()), pk))
-    return stacks
+        v = verify_stack(image, camera, target, st, p, stats)
+        if v is not None:
+            verified.append(v)
+        taken.append((int(st.rows[0]), int(st.rows[-1]), int(st.x[:, 0].min()), int(st.x[:, 3].max()), pk,
+                       v is not None))
+    verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
+    return stacks, verified
 
 
-def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, dark: np.ndarray, bright: np.ndarray,
-                 p: DetectorParams, lo_ratio: float) -> np.ndarray:
+def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, thr: np.ndarray, span: np.ndarray,
+                 p: DetectorParams, lo_ratio: float):
     """Minimum-height and aspect tests (§4.5.2 (1)) in advance, for all seeds at once.
 
-    A stack of at least ``M`` rows through row ``y`` contains row ``y - k`` or row
-    ``y + k``, ``k = (M - 1) // 2``; ``M`` is ``min_rows`` or, if more, the least
-    height the aspect test allows for the seed's width (``lo_ratio`` times it). On those two rows the
-    three segments at the seed's columns must have the seed's shades
-    (normalised mean of the non-boundary pixels below 0.35 for a dark segment,
-    above 0.65 for a light one). Returns a boolean mask over ``seeds``.
+    The stack through the seed's row ``y`` must be at least ``M`` rows tall: ``M``
+    is ``min_rows`` or, if more, the least height the aspect test allows for the
+    seed's width (``lo_ratio`` times it). On every ``min_rows // 6``-th row within ``M`` of ``y``,
+    11 pixels across
+    the seed -- the middle of each margin, and the first, middle and last
+    non-boundary pixel of each run -- thresholded at the seed's midway level
+    ``thr`` must have the seed's shades (the margin pixels may be blurred grey, within a
+    quarter of the contrast ``span`` of ``thr``, but not clearly of the bars' shade); the run of
+    good sampled rows through ``y`` must be able to span ``M`` rows. One gather for
+    all seeds and rows.
+    Returns a boolean mask over ``seeds`` and ``(S,)`` bounds (exclusive) of the
+    rows the stack spans as far as looked (within ``M`` of ``y``).
     """
     h, w = image.shape
     y = tri.y[seeds]
-    width = tri.x[seeds, 3] - tri.x[seeds, 0]
-    k = np.maximum(1, (np.maximum(int(p.min_rows), np.floor(lo_ratio * width).astype(int)) - 1) // 2)
-    rows = np.concatenate([np.clip(y - k, 0, h - 1), np.clip(y + k, 0, h - 1)])
-    v = image[rows].astype(np.int32)
-    cs = np.zeros((rows.size, w + 1), np.int32)
-    np.cumsum(v, axis=1, out=cs[:, 1:])
-    xb = np.concatenate([tri.x[seeds], tri.x[seeds]])
+    xb = tri.x[seeds]
+    width = xb[:, 3] - xb[:, 0]
+    need = np.maximum(int(p.min_rows), (lo_ratio * width).astype(int))  # (S,) least stack height
+    step = max(1, int(p.min_rows) // 6)  # sample every step-th row (the stack is connected)
+    kmax = (int(need.max()) - 1) // step + 1
+    off = np.arange(-kmax, kmax + 1) * step
+    rows = y[:, None] + off[None, :]  # (S, 2K+1)
+    inside = (rows >= 0) & (rows < h)
     a = xb[:, :3]
     b = xb[:, 1:]
-    mm = np.minimum(2, (b - a - 1) // 2)
-    a2, b2 = a + mm, b - mm
-    li = np.arange(rows.size)[:, None]
-    mean = (cs[li, b2] - cs[li, a2]) / (b2 - a2)
-    dk = np.concatenate([dark[seeds], dark[seeds]])[:, None]
-    br = np.concatenate([bright[seeds], bright[seeds]])[:, None]
-    f = (mean - dk) / np.maximum(br - dk, 1.0)
-    pos = np.concatenate([tri.positive[seeds], tri.positive[seeds]])
-    barf = np.where(pos, np.maximum(f[:, 0], f[:, 2]), 1.0 - np.minimum(f[:, 0], f[:, 2]))
-    gapf = np.where(pos, f[:, 1], 1.0 - f[:, 1])
-    good = (barf < 0.35) & (gapf > 0.65)
-    n = seeds.size
-    return good[:n] | good[n:]
+    e = np.minimum(1, (b - a - 1) // 2)
+    mw = np.maximum(1, width // 12)
+    cols = np.empty((seeds.size, 11), dtype=xb.dtype)
+    cols[:, 0] = np.maximum(xb[:, 0] - (mw + 1) // 2, 0)
+    cols[:, 1:10:3] = a + e
+    cols[:, 2:10:3] = (a + b) // 2
+    cols[:, 3:10:3] = b - 1 - e
+    cols[:, 10] = np.minimum(xb[:, 3] + mw // 2, w - 1)
+    v = np.take(image, (np.clip(rows, 0, h - 1) * w)[:, :, None] + cols[:, None, :])  # (S, 2K+1, 11), flat index
+    pos = tri.positive[seeds]
+    t = thr[seeds][:, None, None]
+    light = v >= t
+    pattern = np.where(pos[:, None], _PATTERN[None, :], ~_PATTERN[None, :])
+    miss = light != pattern[:, None, :]
+    # the margin pixels may be blurred grey, but not clearly of the bars' shade
+    tol = (0.25 * span[seeds])[:, None]
+    marg = v[:, :, [0, 10]].astype(np.float32)
+    wrong = np.where(pos[:, None, None], marg < t - tol[:, :, None], marg > t + tol[:, :, None])
+    bad = miss[:, :, 1:10].any(axis=2) | wrong.any(axis=2) | ~inside  # (S, 2K+1)
+    if p.max_row_gap >= step:  # a single failing row between good ones does not break a stack
+        iso = bad.copy()
+        iso[:, 1:-1] &= ~bad[:, :-2] & ~bad[:, 2:]
+        iso[:, [0, -1]] = False
+        bad &= ~iso
+    # sampled rows of the connected run through y: up to the first failing one either way
+    upb = bad[:, kmax::-1]
+    dnb = bad[:, kmax:]
+    n_up = np.where(upb.any(axis=1), upb.argmax(axis=1), kmax + 1)
+    n_dn = np.where(dnb.any(axis=1), dnb.argmax(axis=1), kmax + 1)
+    # n_up + n_dn - 1 good samples in a row: the run spans about that many times step rows
+    return (n_up + n_dn - 1) * step >= need - 1, y - n_up * step, y + n_dn * step
+
+
+#: shades (True = light) of the column test's pixels for a positive target
+_PATTERN = np.array([True, False, False, False, True, True, True, False, False, False, True])
+
+
+def _run_through(idx: np.ndarray, at: int, step: int):
+    """The connected run of sorted indices ``idx`` through ``at`` (or within ``step`` of
+    it), where consecutive members differ by at most ``step``; ``(first, last)`` or None."""
+    if idx.size == 0:
+        return None
+    j = int(np.searchsorted(idx, at))
+    if j < idx.size and idx[j] - at <= step:
+        pass
+    elif j > 0 and at - idx[j - 1] <= step:
+        j -= 1
+    else:
+        return None
+    brk = np.flatnonzero(np.diff(idx) > step)  # a break after position brk
+    k = int(np.searchsorted(brk, j))
+    lo = int(brk[k - 1]) + 1 if k > 0 else 0
+    hi = int(brk[k]) if k < brk.size else idx.size - 1
+    return int(idx[lo]), int(idx[hi])
 
 
 def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, p: DetectorParams,
-               max_ratio: float, stats: DetectionStats) -> Stack | None:
-    """Fine search (§4.4.1) around the coarse hit at row ``y`` with run boundaries ``xb`` (4,).
+               span: tuple[int, int], stats: DetectionStats) -> Stack | None:
+    """Fine search (§4.4.1) around the coarse hit at row ``y`` with run boundaries ``xb`` (4,),
+    over the rows ``span`` (exclusive bounds, from :func:`_tall_enough`).
 
     Every line of a region of interest around the hit is thresholded at ``thr``
     (midway between the hit's dark and bright levels, §4.4.2); on each line the
@@ -177,59 +244,64 @@ def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, 
     through the hit (at most ``max_row_gap`` lines missing in a row) is the stack.
     """
     h, w = image.shape
-    n = int(p.coarse_step)
     width = xb[3] - xb[0]
     m = width / 3.0
     pad = int(m) + 3
     c0 = max(0, xb[0] - pad)
     c1 = min(w, xb[3] + pad)
-    reach = int(math.ceil(max_ratio * width)) + 2
-    r0 = max(0, y - 2 * n)
-    r1 = min(h, y + reach + 1)
-    for attempt in range(2):
+    r0 = max(0, span[0] - 1)
+    r1 = min(h, span[1] + 1)
+    for _ in range(8):  # grow the region while the stack reaches its top or bottom line
         roi = image[r0:r1, c0:c1]
-        stats.rows_scanned += r1 - r0
+        nrow, ncol = roi.shape
+        stats.rows_scanned += nrow
         bar = (roi < thr) if positive else (roi >= thr)
         xg = (xb[1] + xb[2]) // 2 - c0
-        trans = bar[:, 1:] != bar[:, :-1]  # (R, C-1): a run starts at column j + 1
-        cr = np.cumsum(trans[:, xg:], axis=1, dtype=np.int16)
-        cl = np.cumsum(trans[:, xg - 1::-1], axis=1, dtype=np.int16) if xg > 0 else np.zeros((roi.shape[0], 1), np.int16)
-        # column (ROI) where the k-th transition right / left of the gap centre puts a run start
-        r_1 = xg + 1 + (cr < 1).sum(axis=1)
-        r_2 = xg + 1 + (cr < 2).sum(axis=1)
-        r_3 = xg + 1 + (cr < 3).sum(axis=1)
-        l_1 = xg - (cl < 1).sum(axis=1)
-        l_2 = xg - (cl < 2).sum(axis=1)
-        l_3 = np.maximum(xg - (cl < 3).sum(axis=1), 0)
-        r_3 = np.minimum(r_3, roi.shape[1])
+        # run-length code of the whole region at once: run starts (row * ncol + column), a
+        # sentinel start at the end of each row; the gap run is the one holding column xg
+        flat = bar.ravel()
+        chg = np.empty(flat.size, bool)
+        chg[0] = True
+        np.not_equal(flat[1:], flat[:-1], out=chg[1:])
+        chg[::ncol] = True
+        starts = np.flatnonzero(chg)
+        ends = np.arange(1, nrow + 1) * ncol  # row ends, as run starts of the next row
+        key = np.concatenate([starts, ends])
+        key.sort()
+        key = np.concatenate([np.full(3, -ncol), key, np.full(3, (nrow + 2) * ncol)])
+        rowb = np.arange(nrow) * ncol
+        j = np.searchsorted(key, rowb + xg, side="right")  # first start right of xg
+        # starts of the gap (l_1), bar 1 (l_2), left margin (l_3); ends of gap, bar 2, right margin
+        l_1, l_2, l_3 = key[j - 1] - rowb, key[j - 2] - rowb, np.maximum(key[j - 3] - rowb, 0)
+        r_1, r_2, r_3 = key[j] - rowb, key[j + 1] - rowb, np.minimum(key[j + 2] - rowb, ncol)
         b1 = l_1 - l_2
         gp = r_1 - l_1
         b2 = r_2 - r_1
-        s = b1 + gp + b2
-        ok = ~bar[:, xg] & (cl[:, -1] >= 2) & (cr[:, -1] >= 2)
-        ok &= (np.minimum(np.minimum(b1, gp), b2) >= p.min_bar_px) & near_equal(b1, gp, b2, p)
-        ok &= 3.0 * np.minimum(l_2 - l_3, r_3 - r_2) >= p.min_margin_ratio * s
+        ok = ~bar[:, xg] & (l_2 >= 0) & (r_2 <= ncol) & (np.minimum(np.minimum(b1, gp), b2) >= p.min_bar_px)
+        ok &= near_equal(b1, gp, b2, p) & (3.0 * np.minimum(l_2 - l_3, r_3 - r_2) >= p.min_margin_ratio * (b1 + gp + b2))
         tol = max(2.0, 0.5 * m)
-        ok &= (np.abs(l_2 + c0 - xb[0]) <= tol) & (np.abs(r_2 + c0 - xb[3]) <= tol)
-        ok &= (np.abs(l_1 + c0 - xb[1]) <= tol) & (np.abs(r_1 + c0 - xb[2]) <= tol)
+        ok &= (np.abs(l_2 + (c0 - xb[0])) <= tol) & (np.abs(r_2 + (c0 - xb[3])) <= tol)
+        ok &= (np.abs(l_1 + (c0 - xb[1])) <= tol) & (np.abs(r_1 + (c0 - xb[2])) <= tol)
         good = np.flatnonzero(ok)
-        if good.size == 0:
+        run = _run_through(good, y - r0, 1 + int(p.max_row_gap))
+        if run is None:
+            stats.reject("fine_scan")
             return None
-        sy = y - r0
-        seed = int(np.argmin(np.abs(good - sy)))
-        if abs(int(good[seed]) - sy) > 1 + p.max_row_gap:
-            return None
-        gaps = np.flatnonzero(np.diff(good) > 1 + p.max_row_gap)
-        lo = int(gaps[gaps < seed][-1]) + 1 if (gaps < seed).any() else 0
-        hib = gaps[gaps >= seed]
-        hi = int(hib[0]) if hib.size else good.size - 1
-        sel = good[lo:hi + 1]
-        if attempt == 0 and sel[0] == 0 and r0 > 0:
-            r0 = max(0, y - reach)  # the target reaches higher than two coarse steps: look further up
-            continue
-        break
+        sel = good[(good >= run[0]) & (good <= run[1])]
+        grow_up = sel[0] == 0 and r0 > 0
+        grow_dn = sel[-1] == nrow - 1 and r1 < h
+        if not (grow_up or grow_dn):
+            break
+        extra = max(2 * (sel[-1] - sel[0] + 1), 8)
+        if grow_up:
+            r0 = max(0, r0 - extra)
+        if grow_dn:
+            r1 = min(h, r1 + extra)
     x = np.stack([l_2[sel], l_1[sel], r_1[sel], r_2[sel]], axis=1) + c0
-    return Stack(rows=sel + r0, x=x, positive=positive, dark=float("nan"), bright=float("nan"))
+    xs = np.sort(x, axis=0)
+    mid = sel.size // 2
+    med = xs[mid].astype(float) if sel.size % 2 else 0.5 * (xs[mid - 1] + xs[mid])
+    return Stack(rows=sel + r0, x=x, positive=positive, median_x=med)
 
 
 def _rough_ends(image: np.ndarray, r0: int, r1: int, nr: int, col: int, thr: float, positive: bool) -> tuple[int, int]:
@@ -338,4 +410,4 @@ def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stac
                 if frac_bg < 0.75 * band.size:
                     stats.reject("margins")
                     return None
-    return Stack(st.rows, st.x, st.positive, dark, bright, tuple(ends))
+    return Stack(st.rows, st.x, st.positive, dark, bright, tuple(ends), xb)

@@ -33,8 +33,8 @@ def line_thresholds(lines: np.ndarray, p: DetectorParams) -> np.ndarray:
     return np.where(contrast >= p.local_contrast, mid, int(np.ceil(p.global_threshold))).astype(np.uint8)
 
 
-def pixel_thresholds(lines: np.ndarray, p: DetectorParams, window: int) -> np.ndarray:
-    """Global plus local thresholds of §4.4.2, per pixel, ``(k, W)`` uint8.
+def threshold_lines(lines: np.ndarray, p: DetectorParams, window: int) -> np.ndarray:
+    """Global plus local thresholding of §4.4.2, per pixel: ``(k, W)`` bool, True = white.
 
     The thesis takes one midway threshold per line. On a cluttered line that
     level is set by whatever is brightest and darkest anywhere on the line, so
@@ -52,8 +52,9 @@ def pixel_thresholds(lines: np.ndarray, p: DetectorParams, window: int) -> np.nd
     contrast = cv2.subtract(hi, lo)
     mid = cv2.subtract(hi, contrast >> 1)  # (hi + lo + 1) // 2 without overflow
     flat = contrast < p.local_contrast
-    np.copyto(mid, line_thresholds(lines, p)[:, None], where=flat)
-    return mid
+    local = lines >= mid
+    glob = lines >= line_thresholds(lines, p)[:, None]
+    return (local & ~flat) | (glob & flat)
 
 
 @dataclass(frozen=True)
@@ -70,6 +71,7 @@ class Runs:
     y: np.ndarray
     x: np.ndarray
     line: np.ndarray
+    width: int = 0  # line length (px)
 
 
 def run_length_code(binary: np.ndarray, rows: np.ndarray, x_offset: int = 0) -> Runs:
@@ -91,7 +93,8 @@ def run_length_code(binary: np.ndarray, rows: np.ndarray, x_offset: int = 0) -> 
     line = start // w
     x = start - line * w
     # a run never crosses a line end: the next line's first pixel always starts a run
-    return Runs(g=flatb[start], l=end - start, y=np.asarray(rows)[line], x=x + x_offset, line=line)
+    return Runs(g=flatb[start], l=end - start, y=np.asarray(rows)[line], x=x + x_offset, line=line,
+                width=w + x_offset)
 
 
 @dataclass(frozen=True)
@@ -100,26 +103,26 @@ class Triples:
 
     ``(T,)`` arrays: ``y`` row, ``line`` batch line index, ``x`` ``(T, 4)`` run
     boundaries (first pixel of bar 1, gap, bar 2, and one past bar 2),
-    ``positive`` True for black-white-black, ``margin`` ``(T, 2)`` lengths of
-    the runs either side. ``periodic`` ``(T, 4)``: the run beyond each margin run
-    (start, end columns; left then right) when that margin and that run are both
-    as long as the bars -- the triple may then be part of a grating or a
-    chessboard -- else ``-1``.
+    ``positive`` True for black-white-black. ``regions`` ``(T, 7, 2)`` (start, end)
+    columns of the pixels whose grey levels :func:`triple_levels` samples: the
+    margin next to each outer edge, the non-boundary pixels of the three runs,
+    and the run beyond each margin when that margin and that run are both as
+    long as the bars (the triple may then be part of a grating or a chessboard;
+    else an empty region).
     """
 
     y: np.ndarray
     line: np.ndarray
     x: np.ndarray
     positive: np.ndarray
-    margin: np.ndarray
-    periodic: np.ndarray
+    regions: np.ndarray
 
     def __len__(self) -> int:
         return int(self.y.size)
 
 
 _EMPTY = Triples(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int), np.zeros(0, bool),
-                 np.zeros((0, 2), int), np.zeros((0, 4), int))
+                 np.zeros((0, 7, 2), int))
 
 
 def near_equal(l0, l1, l2, p: DetectorParams):
@@ -132,7 +135,7 @@ def near_equal(l0, l1, l2, p: DetectorParams):
     longest and shortest run may differ by ``width_tolerance`` of the longest plus
     ``width_slack`` px.
     """
-    c = np.clip((l1 - 0.5 * (l0 + l2)) * 0.25, -p.max_edge_shift, p.max_edge_shift)
+    c = np.minimum(np.maximum((l1 - 0.5 * (l0 + l2)) * 0.25, -p.max_edge_shift), p.max_edge_shift)
     a0 = l0 + 2.0 * c
     a1 = l1 - 2.0 * c
     a2 = l2 + 2.0 * c
@@ -165,75 +168,69 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     if i.size == 0:
         return _EMPTY
     x = runs.x
-    per = np.full((i.size, 4), -1, dtype=x.dtype)
+    x0, x1, x2 = x[i], x[i + 1], x[i + 2]
+    x3 = x2 + l[i + 2]
+    # sampled regions (start, end): left margin, bar, gap, bar, right margin, and the runs
+    # beyond the margins when those could make five equal runs (else empty)
+    b = (x3 - x0) / 3.0
+    mw = np.maximum(1, (b * 0.25).astype(x.dtype))
+    e0 = np.minimum(2, (x1 - x0 - 1) // 2)
+    e1 = np.minimum(2, (x2 - x1 - 1) // 2)
+    e2 = np.minimum(2, (x3 - x2 - 1) // 2)
+    reg = np.empty((i.size, 7, 2), dtype=x.dtype)
+    reg[:, 0, 0] = np.maximum(x0 - mw, 0)
+    reg[:, 0, 1] = x0
+    reg[:, 1, 0] = x0 + e0
+    reg[:, 1, 1] = x1 - e0
+    reg[:, 2, 0] = x1 + e1
+    reg[:, 2, 1] = x2 - e1
+    reg[:, 3, 0] = x2 + e2
+    reg[:, 3, 1] = x3 - e2
+    reg[:, 4, 0] = x3
+    reg[:, 4, 1] = np.minimum(x3 + mw, runs.width)
+    reg[:, 5:, :] = 0
     if p.reject_periodic:
         # five or more equal runs in a row (a grating, a chessboard): flag the run beyond
-        # each margin; its grey level decides (:func:`segment_levels`, a bar's shade = periodic)
-        m = (l[i] + l[i + 1] + l[i + 2]) / 3.0
-        tol = p.periodic_tolerance * m + 1.0
+        # each margin; its grey level decides (a bar's shade = periodic, see find_stacks)
+        tol = p.periodic_tolerance * b + 1.0
         im2 = np.maximum(i - 2, 0)
         ip4 = np.minimum(i + 4, n - 1)
         li = line[i]
-        left = (line[im2] == li) & (i >= 2) & (np.abs(l[i - 1] - m) <= tol) & (np.abs(l[im2] - m) <= tol)
-        right = (line[ip4] == li) & (i + 4 < n) & (np.abs(l[i + 3] - m) <= tol) & (np.abs(l[ip4] - m) <= tol)
-        per[left, 0] = x[im2[left]]
-        per[left, 1] = x[im2[left]] + l[im2[left]]
-        per[right, 2] = x[ip4[right]]
-        per[right, 3] = x[ip4[right]] + l[ip4[right]]
-    xb = np.stack([x[i], x[i + 1], x[i + 2], x[i + 2] + l[i + 2]], axis=1)
-    return Triples(y=runs.y[i], line=line[i], x=xb, positive=~runs.g[i],
-                   margin=np.stack([l[i - 1], l[i + 3]], axis=1), periodic=per)
+        left = (line[im2] == li) & (i >= 2) & (np.abs(l[i - 1] - b) <= tol) & (np.abs(l[im2] - b) <= tol)
+        right = (line[ip4] == li) & (i + 4 < n) & (np.abs(l[i + 3] - b) <= tol) & (np.abs(l[ip4] - b) <= tol)
+        reg[left, 5, 0] = x[im2[left]]
+        reg[left, 5, 1] = x[im2[left]] + l[im2[left]]
+        reg[right, 6, 0] = x[ip4[right]]
+        reg[right, 6, 1] = x[ip4[right]] + l[ip4[right]]
+    return Triples(y=runs.y[i], line=line[i], x=np.stack([x0, x1, x2, x3], axis=1), positive=~runs.g[i],
+                   regions=reg)
 
 
 def scan_lines(image: np.ndarray, rows: np.ndarray, p: DetectorParams, window: int):
-    """Threshold (:func:`pixel_thresholds`), code and search image ``rows`` (``(k,)``).
+    """Threshold (:func:`threshold_lines`), code and search image ``rows`` (``(k,)``).
 
     Returns ``(triples, lines, n_runs)`` with ``lines`` the ``(k, W)`` grey lines.
     """
     lines = image[rows]
-    binary = lines >= pixel_thresholds(lines, p, window)
+    binary = threshold_lines(lines, p, window)
     runs = run_length_code(binary, rows)
     return find_triples(runs, p), lines, int(runs.l.size)
 
 
-def segment_levels(lines: np.ndarray, tri: Triples, p: DetectorParams):
-    """Grey levels of every triple's segments on its own scan line, all triples at once.
+def triple_levels(lines: np.ndarray, tri: Triples) -> np.ndarray:
+    """Mean grey level of each triple's sampled regions on its own scan line.
 
-    For each triple, the mean and standard deviation (grey levels) of the
-    non-boundary pixels of its three runs (bar, gap, bar; up to 2 px at each
-    end are boundary, the thesis's 5-pixel edge transition) and the mean of the
-    ``max(1, b/4)`` margin pixels next to each outer edge, and of the runs flagged
-    in ``tri.periodic`` (NaN where none). Computed from prefix sums of the lines.
-    Returns ``(mean (T, 3), std (T, 3), margin_mean (T, 2), periodic_mean (T, 2))``.
+    ``(T, 7)``: left margin, bar, gap, bar, right margin (non-boundary pixels: up
+    to 2 px at each end of a run are boundary, the thesis's 5-pixel edge
+    transition; the margins are the ``max(1, b/4)`` pixels next to the outer edges),
+    then the runs flagged by the periodic test (NaN where none). One prefix sum
+    over the lines and one gather: a fixed number of numpy calls for any ``T``.
     """
     k, w = lines.shape
-    used, li_all = np.unique(tri.line, return_inverse=True)
-    v = lines[used].astype(np.int32)
-    cs = np.zeros((used.size, w + 1), np.int32)
-    np.cumsum(v, axis=1, out=cs[:, 1:])
-    cs2 = np.zeros((used.size, w + 1), np.int32)
-    np.cumsum(v * v, axis=1, out=cs2[:, 1:])
-    xb = tri.x
-    a = xb[:, :3]
-    b = xb[:, 1:]
-    ln = b - a
-    m = np.minimum(2, (ln - 1) // 2)
-    a2 = a + m
-    b2 = b - m
-    li = li_all[:, None]
-    cnt = (b2 - a2).astype(np.float64)
-    s1 = (cs[li, b2] - cs[li, a2]) / cnt
-    s2 = (cs2[li, b2] - cs2[li, a2]) / cnt
-    std = np.sqrt(np.maximum(s2 - s1 * s1, 0.0))
-    mw = np.maximum(1, ln.sum(axis=1) // 12)
-    x0 = np.maximum(xb[:, 0] - mw, 0)
-    x3 = np.minimum(xb[:, 3] + mw, w)
-    l0 = li_all
-    left = (cs[l0, xb[:, 0]] - cs[l0, x0]) / np.maximum(xb[:, 0] - x0, 1)
-    right = (cs[l0, x3] - cs[l0, xb[:, 3]]) / np.maximum(x3 - xb[:, 3], 1)
-    per = tri.periodic
-    pa = np.maximum(per[:, 0::2], 0)
-    pb = np.maximum(per[:, 1::2], 0)
-    pm = (cs[li, pb] - cs[li, pa]) / np.maximum(pb - pa, 1)
-    pm[per[:, 0::2] < 0] = np.nan
-    return s1, std, np.stack([left, right], axis=1), pm
+    cs = np.zeros((k, w + 1), np.int32)
+    np.cumsum(lines, axis=1, dtype=np.int32, out=cs[:, 1:])
+    li = tri.line[:, None]
+    reg = tri.regions
+    cnt = reg[:, :, 1] - reg[:, :, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (cs[li, reg[:, :, 1]] - cs[li, reg[:, :, 0]]) / cnt

@@ -46,7 +46,7 @@ def _paste(refl, tag, x, y, size):
 def _speed_frames(camera, n, rng, n_targets=1, with_markers=True):
     import numpy as np
 
-    from localizer.synthetic import photo_background, real_photos, render_frame
+    from localizer.synthetic import real_photos, render_frame
     from localizer import TargetPose
 
     photos = list(real_photos(camera).values()) or [np.full(camera.shape, 0.5)]

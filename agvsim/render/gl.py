@@ -51,20 +51,23 @@ def _load(names: tuple[str, ...]):
 
 
 def egl_works() -> bool:
-    """Whether an EGL display can be initialised (ctypes probe; PyOpenGL is not imported)."""
+    """Whether EGL can offer a headless device (ctypes probe; PyOpenGL is not imported).
+
+    Loads ``libEGL.so.1`` and asks ``eglQueryDevicesEXT`` (the extension pyrender's
+    EGL platform uses) for at least one device; no display is initialised.
+    """
     lib = _load(("libEGL.so.1", "EGL"))
     if lib is None:
         return False
     try:
-        lib.eglGetDisplay.restype = ctypes.c_void_p
-        lib.eglGetDisplay.argtypes = [ctypes.c_void_p]
-        lib.eglInitialize.restype = ctypes.c_uint
-        lib.eglInitialize.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)]
-        display = lib.eglGetDisplay(None)  # EGL_DEFAULT_DISPLAY
-        if not display:
+        lib.eglGetProcAddress.restype = ctypes.c_void_p
+        lib.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        addr = lib.eglGetProcAddress(b"eglQueryDevicesEXT")
+        if not addr:
             return False
-        major, minor = ctypes.c_int(), ctypes.c_int()
-        return bool(lib.eglInitialize(display, ctypes.byref(major), ctypes.byref(minor)))
+        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_int))(addr)
+        n = ctypes.c_int(0)
+        return bool(query(0, None, ctypes.byref(n))) and n.value > 0
     except (AttributeError, OSError):
         return False
 
@@ -131,3 +134,96 @@ def create_offscreen(width: int, height: int):
     except Exception as exc:  # noqa: BLE001 - any platform failure becomes one clear error
         raise RenderUnavailable(f"could not create a {platform} OpenGL context ({type(exc).__name__}: {exc}); "
                                 + INSTALL_HINT) from exc
+
+
+class GLContext:
+    """One headless OpenGL context (a pyrender ``OffscreenRenderer``), opened at the first frame.
+
+    Create one per process and share it between renderers (pass it as
+    ``CameraRenderer(..., context=ctx)``): pyrender cannot hold two EGL
+    contexts in one process safely (deleting the second raised ``EGL_BAD_DISPLAY``).
+    Nothing is opened until :meth:`renderer` is first called, so a process may
+    build renderers and then fork (Gymnasium's ``AsyncVectorEnv``).
+
+    Attributes (after the first frame):
+        platform: ``"egl"`` or ``"osmesa"``.
+        startup_s: seconds spent creating the context (s).
+    """
+
+    def __init__(self) -> None:
+        self._offscreen = None
+        self._pid = None
+        self._scenes: dict = {}  # map object -> pyrender scene shared by that map's renderers
+        self.platform: str | None = None
+        self.startup_s: float | None = None
+
+    def shared_scene(self, key, build):
+        """The pyrender scene for ``key`` (a map object), built by ``build()`` once per context.
+
+        Renderers of the same map share it (each adds its own camera node), so
+        alternating between cameras does not re-upload meshes and textures, which
+        pyrender does whenever the scene it renders changes.
+        """
+        entry = self._scenes.get(id(key))
+        if entry is None or entry[0] is not key:
+            entry = (key, build())
+            self._scenes[id(key)] = entry
+        return entry[1]
+
+    @property
+    def is_open(self) -> bool:
+        """Whether the GL context exists (a frame has been rendered)."""
+        return self._offscreen is not None
+
+    def renderer(self, width: int, height: int):
+        """The pyrender ``OffscreenRenderer``, created on first use, resized to ``width x height``."""
+        import time
+
+        if self._offscreen is not None and self._pid != os.getpid():
+            raise RenderUnavailable("this GL context was opened in another process (before a fork); "
+                                    "create renderers after forking, or render the first frame in the child")
+        if self._offscreen is None:
+            t0 = time.perf_counter()
+            self._offscreen, self.platform = create_offscreen(width, height)
+            self.startup_s = time.perf_counter() - t0
+            self._pid = os.getpid()
+        r = self._offscreen
+        if r.viewport_width != width or r.viewport_height != height:
+            r.viewport_width, r.viewport_height = int(width), int(height)
+        return r
+
+    def close(self) -> None:
+        """Free this context's GL resources (call when this process renders no more frames with it).
+
+        pyrender's own ``OffscreenRenderer.delete`` also calls ``eglTerminate`` on the
+        process-wide EGL display, which breaks every other EGL context in the process
+        (the ``EGL_BAD_DISPLAY`` trap); here only this context is destroyed and the
+        display stays initialised.
+        """
+        off, self._offscreen = self._offscreen, None
+        self._scenes = {}
+        if off is None or self._pid != os.getpid():
+            return
+        platform = getattr(off, "_platform", None)
+        if self.platform == "egl" and platform is not None and getattr(platform, "_egl_context", None) is not None:
+            from OpenGL.EGL import EGL_NO_CONTEXT, EGL_NO_SURFACE, eglDestroyContext, eglMakeCurrent
+
+            display = platform._egl_display
+            try:
+                platform.make_current()
+                off._renderer.delete()
+            finally:
+                eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT)
+                eglDestroyContext(display, platform._egl_context)
+                platform._egl_context = None
+                platform._egl_display = None
+                off._renderer = None
+                off._platform = None  # pyrender's __del__ then has nothing left to delete
+        else:
+            off.delete()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - never raise from a finaliser
+            pass

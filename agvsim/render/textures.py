@@ -1,8 +1,8 @@
 """Procedural textures: targets, wall surfaces, obstacles and distractors.
 
 Every texture is an ``(H, W)`` float32 array of *linear* diffuse reflectance
-(albedo, 0..1), row 0 at the top of the surface; :func:`to_rgb8` turns it
-into the ``(H, W, 3)`` uint8 image handed to OpenGL. The renderer draws in
+(albedo, 0..1), row 0 at the top of the surface; :func:`to_rgba8` turns it
+into the ``(H, W, 4)`` uint8 image handed to OpenGL. The renderer draws in
 pyrender's FLAT mode, which neither decodes nor re-encodes sRGB, so texture
 filtering and multisample resolve stay linear and edges stay where they are.
 
@@ -24,12 +24,19 @@ TARGET_TEXELS_PER_BAR = 256
 MAX_TEXTURE_SIZE = 2048  # texels
 
 
-def to_rgb8(albedo: np.ndarray) -> np.ndarray:
-    """``(H, W)`` or ``(H, W, 3)`` reflectance (0..1) -> ``(H, W, 3)`` uint8 (linear, no gamma)."""
+def to_rgba8(albedo: np.ndarray) -> np.ndarray:
+    """``(H, W)`` reflectance (0..1) -> ``(H, W, 4)`` uint8 grey, opaque (linear, no gamma).
+
+    Four bytes per texel keep every row 4-byte aligned: pyrender uploads textures with
+    OpenGL's default ``GL_UNPACK_ALIGNMENT`` of 4, so 3-byte RGB rows of a width that is
+    not a multiple of 4 would be read sheared, with bytes from beyond the array.
+    """
     a = np.clip(np.asarray(albedo, dtype=np.float32), 0.0, 1.0)
-    if a.ndim == 2:
-        a = np.repeat(a[..., None], 3, axis=2)
-    return np.ascontiguousarray(np.rint(a * 255.0).astype(np.uint8))
+    g = np.rint(a * 255.0).astype(np.uint8)
+    out = np.empty(g.shape + (4,), np.uint8)
+    out[..., :3] = g[..., None]
+    out[..., 3] = 255
+    return out
 
 
 # ------------------------------------------------------------------ targets
@@ -96,7 +103,7 @@ def surface_texture(surface: str, rng: np.random.Generator, size: int = 256) -> 
     n = size
     yy, xx = np.mgrid[0:n, 0:n].astype(np.float32)
     if surface == "concrete":
-        img = 0.42 + _noise(rng, (n, n), 16, 0.03) + _noise(rng, (n, n), 4, 0.015)
+        img = 0.42 + _noise(rng, (n, n), 32, 0.015) + _noise(rng, (n, n), 4, 0.012)
         img[(yy % (n // 2)) < 1.5] -= 0.08  # formwork joints every metre
     elif surface == "brick":
         rows = 16  # 62.5 mm courses on a 1 m tile

@@ -20,7 +20,7 @@ residual; filterpy 2.0's EKF update is in Joseph form,
 
 Lost: position σ (largest eigenvalue of P_xy) above ``lost_position_sigma``,
 heading σ above ``lost_heading_sigma``, or ``lost_rejected_frames`` frames in a
-row whose observations were all refused. Then :class:`~localizer.filter.relocalize.Relocalizer`
+row with a target predicted in view whose observations were all refused. Then :class:`~localizer.filter.relocalize.Relocalizer`
 takes the frames until a hypothesis is confirmed.
 """
 from __future__ import annotations
@@ -54,7 +54,8 @@ class FilterConfig:
             observation's covariance (camera mount and map survey errors).
         lost_position_sigma: position σ (m) above which the filter is lost.
         lost_heading_sigma: heading σ (rad) above which the filter is lost.
-        lost_rejected_frames: frames in a row with observations, none accepted, before lost.
+        lost_rejected_frames: frames in a row with observations and a target predicted in view,
+            none accepted, before lost.
     """
 
     noise: OdometryNoise = OdometryNoise()
@@ -260,8 +261,13 @@ class PoseEKF:
                            hx_args=(pos, yaw, self.mount), residual=_residual)
             self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         accepted = len(nis)
-        if ms:
-            self.rejected_frames = 0 if accepted else self.rejected_frames + 1
+        # a frame counts against the filter when a target was predicted in view and none of the
+        # observations fitted; observations with no candidate at all (false detections away from
+        # every target) say nothing about the pose
+        if accepted:
+            self.rejected_frames = 0
+        elif any(a.candidates > 0 for a in assoc):
+            self.rejected_frames += 1
         self._refresh_now()
         self._check_lost()
         return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, False,

@@ -69,9 +69,10 @@ TWO_PI = 2.0 * math.pi
 
 
 def wrap_angle(a):
-    """Wrap angle(s) (rad) to [-π, π). Works on floats and arrays."""
-    return (np.asarray(a) + math.pi) % TWO_PI - math.pi if not isinstance(a, float) \
-        else (a + math.pi) % TWO_PI - math.pi
+    """Wrap angle(s) (rad) to [-π, π): a float for a float, an array for an array."""
+    if isinstance(a, float):
+        return (a + math.pi) % TWO_PI - math.pi
+    return (np.asarray(a, dtype=float) + math.pi) % TWO_PI - math.pi
 
 
 @dataclass(frozen=True)

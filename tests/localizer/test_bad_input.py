@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from localizer import Camera, detect_targets
+from localizer import detect_targets
 
 
 def test_bad_inputs(cam16):

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from localizer import Camera, DetectionStats, TargetPose, TargetSpec, detect_targets, thesis_alpha
+from localizer import Camera, DetectionStats, TargetPose, detect_targets, thesis_alpha
 from localizer.synthetic import in_envelope, pose_at_column, render_frame
 
 DEG = math.pi / 180

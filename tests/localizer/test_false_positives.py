@@ -3,7 +3,7 @@ import time
 import numpy as np
 import pytest
 
-from localizer import Camera, detect_targets
+from localizer import detect_targets
 from localizer.synthetic import adversarial_frames, expose, real_photos
 
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from localizer import Camera, TargetPose, TargetSpec
+from localizer import TargetPose
 from localizer.synthetic import _quad_coverage, in_envelope, render_reflectance, target_outline
 
 

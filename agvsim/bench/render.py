@@ -1,0 +1,152 @@
+"""``agvsim bench render``: camera frames per second on this machine (headless EGL, llvmpipe on a CPU).
+
+Measured in one process with one GL context:
+
+* start-up: creating the GL context (EGL/OSMesa), then the first frame (scene and
+  texture upload, shader compilation), separately;
+* GL only: pyrender's ``FLAT`` pass (reflectance + depth) at 1x and at 2x supersampling,
+  and, for comparison, pyrender's lit PBR pass (ambient + 1 directional + 4 point lights)
+  on the same scene at 1x;
+* the full :meth:`CameraRenderer.render` (GL + deferred lighting + sensor + truth), with
+  supersampling 1 and 2 (the default), median ms per frame over poses along the map's
+  default route.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--map", default="plant_floor", help="map (default: %(default)s)")
+    parser.add_argument("--frames", type=int, default=40, help="timed frames per configuration (default: %(default)s)")
+    parser.add_argument("--lens", type=float, default=16.0, help="thesis lens, mm (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def _median_ms(fn, poses) -> float:
+    times = []
+    for p in poses:
+        t0 = time.perf_counter()
+        fn(p)
+        times.append(time.perf_counter() - t0)
+    return 1000.0 * statistics.median(times)
+
+
+def run(args) -> dict:
+    import math
+    import os
+
+    import numpy as np
+
+    from localizer import Camera
+    from agvsim.render.gl import GLContext
+    from agvsim.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.render.strip import route_poses
+    from agvsim.world.map import load_map
+
+    if args.frames < 1:
+        raise ValueError("--frames must be >= 1")
+    world_map = load_map(args.map)
+    camera = Camera.thesis(args.lens)
+    poses = route_poses(world_map, args.frames, lookahead_target=False)
+    rng = np.random.default_rng(args.seed)
+    ctx = GLContext()
+
+    t0 = time.perf_counter()
+    r2 = CameraRenderer(world_map, camera, supersample=2, context=ctx)
+    construct_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    r2.render(poses[0], RenderConditions(), rng)
+    first_frame_s = time.perf_counter() - t0
+    context_s = ctx.startup_s
+    r1 = CameraRenderer(world_map, camera, supersample=1, context=ctx)
+    r1.render(poses[0], RenderConditions(), rng)
+
+    def gl_only(renderer):
+        def f(p):
+            renderer._render_gl(renderer.camera_pose(p))
+        return f
+
+    # lit PBR pass for comparison (pyrender's own lighting, not used by the renderer)
+    pyrender, scene, node = r1._gl
+    lights = [scene.add(pyrender.DirectionalLight(intensity=2.0), pose=_look_down())]
+    for k in range(4):
+        m = np.eye(4)
+        m[:3, 3] = (10.0 + 12.0 * k, 20.0, 6.0)
+        lights.append(scene.add(pyrender.PointLight(intensity=30.0), pose=m))
+    off = ctx.renderer(camera.width, camera.height)
+
+    def lit(p):
+        scene.set_pose(node, r1.camera_pose(p).gl_pose())
+        off.render(scene, flags=pyrender.RenderFlags.NONE)
+
+    lit(poses[0])  # compile the lit shader outside the timing
+    lit_ms = _median_ms(lit, poses)
+    for n in lights:
+        scene.remove_node(n)
+
+    res = {
+        "map": world_map.name, "frames": len(poses), "width": camera.width, "height": camera.height,
+        "lens_mm": args.lens, "platform": ctx.platform,
+        "pyopengl_platform": os.environ.get("PYOPENGL_PLATFORM"),
+        "gl_renderer": _gl_renderer_string(),
+        "startup_s": {"renderer_object": construct_s, "gl_context": context_s,
+                      "first_frame_total": first_frame_s,
+                      "scene_upload_and_shaders": first_frame_s - (context_s or 0.0)},
+        "gl_only_ms": {"flat_1x": _median_ms(gl_only(r1), poses), "flat_2x": _median_ms(gl_only(r2), poses),
+                       "lit_pbr_1x": lit_ms},
+        "render_ms": {
+            "supersample_1": _median_ms(lambda p: r1.render(p, RenderConditions(), rng), poses),
+            "supersample_2": _median_ms(lambda p: r2.render(p, RenderConditions(), rng), poses),
+            "supersample_2_motion_blur": _median_ms(
+                lambda p: r2.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng), poses),
+        },
+    }
+    res["fps_default"] = 1000.0 / res["render_ms"]["supersample_2"] if res["render_ms"]["supersample_2"] else math.nan
+    ctx.close()
+    return res
+
+
+def _look_down():
+    import numpy as np
+
+    m = np.eye(4)
+    # directional light pointing down and a little north-east (-z of its frame)
+    m[:3, :3] = np.array([[1.0, 0.0, 0.0], [0.0, 0.8, 0.6], [0.0, -0.6, 0.8]])
+    return m
+
+
+def _gl_renderer_string() -> str | None:
+    try:
+        from OpenGL.GL import GL_RENDERER, glGetString
+
+        s = glGetString(GL_RENDERER)
+        return s.decode() if isinstance(s, bytes) else s
+    except Exception:  # noqa: BLE001 - informative only
+        return None
+
+
+def format_table(res: dict) -> str:
+    m = res.get("machine", {})
+    s = res["startup_s"]
+    g = res["gl_only_ms"]
+    r = res["render_ms"]
+    lines = [
+        f"agvsim bench render: {res['map']}, {res['width']}x{res['height']}, {res['lens_mm']:g} mm lens, "
+        f"{res['frames']} poses along the default route",
+        f"machine: {m.get('cpu_model', '?')}, {m.get('cpu_count', '?')} CPUs; platform {res['platform']} "
+        f"({res.get('gl_renderer') or '?'})",
+        "start-up (s):",
+        f"  renderer object (scene geometry + textures, no GL)  {s['renderer_object']:.3f}",
+        f"  GL context                                          {s['gl_context']:.3f}",
+        f"  first frame: upload + shaders                       {s['scene_upload_and_shaders']:.3f}",
+        "median ms per frame:",
+        f"  GL only, FLAT 1x                 {g['flat_1x']:7.1f}",
+        f"  GL only, FLAT 2x supersampled    {g['flat_2x']:7.1f}",
+        f"  GL only, pyrender lit PBR 1x     {g['lit_pbr_1x']:7.1f}   (comparison; not used)",
+        f"  render(), supersample 1          {r['supersample_1']:7.1f}",
+        f"  render(), supersample 2 (default){r['supersample_2']:7.1f}",
+        f"  render(), ss 2 + motion blur     {r['supersample_2_motion_blur']:7.1f}",
+    ]
+    return "\n".join(lines)

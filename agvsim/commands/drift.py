@@ -1,0 +1,275 @@
+"""``agvsim drift``: how well vision keeps the AGV's pose, over many seeds.
+
+Drives a route in closed loop (pure pursuit on the EKF's estimate, camera at
+its own rate, each frame rendered, localized and fused) for every seed, in
+parallel on the local cores, and reports position/heading error, NEES
+consistency, dead-reckoning drift, association and re-localization counts,
+and station arrival errors. Plots (trajectories with covariance ellipses,
+error against distance with the 2σ bound) are made for the median seed.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+from agvsim.commands._output import add_json_flag, emit_json, log
+
+DEFAULT_MAP = "plant_floor"
+
+
+def register(sub) -> None:
+    p = sub.add_parser("drift", help="closed-loop drift correction: EKF of odometry + target observations",
+                       description=__doc__.split("\n\n")[0])
+    p.add_argument("--map", default=DEFAULT_MAP, help="map name or YAML path (default: %(default)s)")
+    p.add_argument("--route", default="default", help="route name (default: %(default)s)")
+    p.add_argument("--distance", type=float, default=1000.0, help="metres of route per seed (default: %(default)s)")
+    p.add_argument("--seeds", type=int, default=20, help="number of seeds 0..N-1 (default: %(default)s)")
+    p.add_argument("--first-seed", type=int, default=0, help="first seed (default: %(default)s)")
+    p.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"),
+                   help="odometry error preset (default: %(default)s)")
+    p.add_argument("--camera-rate", type=float, default=4.0, help="camera frames per second (default: %(default)s)")
+    p.add_argument("--latency", type=float, default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
+    p.add_argument("--no-vision", action="store_true", help="dead reckoning only (the contrast run)")
+    p.add_argument("--observations", default="rendered", choices=("rendered", "synthetic", "geometric"),
+                   help="observation source: rendered frames + localizer (issue 4 renderer), synthetic "
+                        "frames + localizer, or geometric truth + noise (default: %(default)s)")
+    p.add_argument("--drop-targets", type=int, default=0, metavar="N",
+                   help="remove every N-th target of the map (3: one target in three; default: none)")
+    p.add_argument("--false-rate", type=float, default=0.0,
+                   help="geometric source only: mean false detections per frame (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=0, help="parallel workers (default: the local cores)")
+    p.add_argument("--out", type=Path, default=Path("out/drift"), help="output folder (default: %(default)s)")
+    p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_json_flag(p)
+    p.set_defaults(func=run)
+
+
+def _job(args: dict):
+    """One seed in a worker process: returns (seed, MissionLog). Renderer created lazily in the worker."""
+    import numpy as np
+
+    from agvsim.mission import MissionConfig, run_mission
+    from agvsim.observe import GeometricNoise, drop_targets, make_source
+    from agvsim.simulation import SimConfig
+    from agvsim.world.map import load_map
+
+    world_map = load_map(args["map"])
+    if args["drop_targets"]:
+        world_map = drop_targets(world_map, args["drop_targets"])
+    config = MissionConfig(route=args["route"], distance=args["distance"], camera_rate=args["camera_rate"],
+                           latency=args["latency"], vision=not args["no_vision"],
+                           sim=SimConfig(odometry=args["odometry"]))
+    source = None
+    if config.vision:
+        kw = {}
+        if args["observations"] == "geometric":
+            kw["noise"] = GeometricNoise(false_rate=args["false_rate"])
+        source = make_source(args["observations"], world_map, config.vision_config, **kw)
+    queue = args.get("queue")
+    last = [0.0]
+
+    def progress(s: float) -> None:
+        if queue is not None and s - last[0] >= 5.0:
+            step = int(s - last[0])
+            queue.put(step)
+            last[0] += step
+
+    run_log = run_mission(world_map, source, np.random.default_rng(args["seed"]), config, progress)
+    if queue is not None:
+        queue.put(max(int(round(args["distance"] - last[0])), 0))
+    return args["seed"], run_log
+
+
+def format_table(summary: dict, per_seed: list[dict]) -> str:
+    lines = [f"{'seed':>5} {'RMSE cm':>8} {'p95 cm':>7} {'max cm':>7} {'hdg RMSE deg':>13} {'NEES in':>8} "
+             f"{'DR final m':>10} {'acc frames':>10} {'rej':>5} {'reloc':>5} {'lost':>4}"]
+    for m in per_seed:
+        lines.append(f"{m['seed']:5d} {100 * m['position_rmse_m']:8.2f} {100 * m['position_p95_m']:7.2f} "
+                     f"{100 * m['position_max_m']:7.2f} {math.degrees(m['heading_rmse_rad']):13.3f} "
+                     f"{100 * m['nees_in_bounds']:7.1f}% {m['dead_reckoning_final_error_m']:10.3f} "
+                     f"{100 * m['frames_with_accepted_observation']:9.1f}% {m['rejections']:5d} "
+                     f"{m['relocalizations']:5d} {m['lost']:4d}")
+    s = summary
+    lines.append(f"{'all':>5} {100 * s['position_rmse_m']:8.2f} {100 * s['position_p95_m']:7.2f} "
+                 f"{100 * s['position_max_m']:7.2f} {math.degrees(s['heading_rmse_rad']):13.3f} "
+                 f"{100 * s['nees_in_bounds']:7.1f}% {s['dead_reckoning_final_error_m']:10.3f} "
+                 f"{100 * s['frames_with_accepted_observation']:9.1f}% {s['rejections']:5d} "
+                 f"{s['relocalizations']:5d} {s['lost']:4d}")
+    return "\n".join(lines)
+
+
+def _plots(world_map, run_log, out: Path, title: str) -> dict:
+    import numpy as np
+
+    from agvsim.plots import error_vs_distance
+    from agvsim.views import TopDownView, Trajectory
+
+    view = TopDownView(world_map)
+    n = len(run_log.time)
+    scale = 20.0  # ellipses magnified so centimetre covariances show
+    idx = np.linspace(0, n - 1, min(n, 60)).astype(int)
+    ellipses = tuple((run_log.estimate[i, :2], run_log.covariance[i, :2, :2] * scale ** 2, (40, 60, 220))
+                     for i in idx)
+    image = view.render((Trajectory(run_log.true_pose, (30, 150, 40), "true"),
+                         Trajectory(run_log.odometry_pose, (210, 40, 40), "dead reckoning"),
+                         Trajectory(run_log.estimate, (40, 60, 220), f"estimated (2σ ellipses x{scale:g})")),
+                        vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses)
+    topdown = TopDownView.save_png(image, out / "trajectories.png")
+    err = np.hypot(*(run_log.estimate[:, :2] - run_log.true_pose[:, :2]).T)
+    odo = np.hypot(*(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2]).T)
+    bound = 2.0 * np.sqrt(np.linalg.eigvalsh(run_log.covariance[:, :2, :2])[:, -1])
+    plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance, {"estimate (EKF)": err},
+                             title=title, bound=bound)
+    plot_dr = error_vs_distance(out / "error_vs_distance_with_dead_reckoning.png", run_log.distance,
+                                {"estimate (EKF)": err, "dead reckoning": odo}, title=title)
+    return {"trajectories": str(topdown), "error_plot": str(plot), "error_plot_with_dead_reckoning": str(plot_dr)}
+
+
+def run(args) -> int:
+    import multiprocessing as mp
+
+    import numpy as np
+    from tqdm import tqdm
+
+    from agvsim.evaluate import floors_met, pooled, run_metrics, summarize
+    from agvsim.observe import RenderedSource, drop_targets
+    from agvsim.world.map import load_map
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
+    if not (math.isfinite(args.distance) and args.distance > 0):
+        raise ValueError(f"--distance must be a positive number of metres, got {args.distance}")
+    if not (math.isfinite(args.camera_rate) and args.camera_rate > 0):
+        raise ValueError(f"--camera-rate must be > 0 Hz, got {args.camera_rate}")
+    if args.drop_targets == 1 or args.drop_targets < 0:
+        raise ValueError(f"--drop-targets must be 0 (none) or >= 2, got {args.drop_targets}")
+    if args.false_rate and args.observations != "geometric":
+        raise ValueError("--false-rate applies to --observations geometric only")
+    world_map = load_map(args.map)
+    if args.drop_targets:
+        world_map = drop_targets(world_map, args.drop_targets)
+    if not args.no_vision and args.observations == "rendered" and not RenderedSource.available():
+        raise ValueError("the camera renderer (agvsim.render.CameraRenderer, issue 4) is not available; "
+                         "use --observations synthetic (synthetic frames + localizer) or geometric")
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    workers = args.workers or (os.cpu_count() or 1)
+    workers = max(1, min(workers, len(seeds)))
+    source = "none (dead reckoning)" if args.no_vision else args.observations
+    log(f"agvsim drift: map {world_map.name!r} ({len(world_map.targets)} targets), route {args.route!r}, "
+        f"{args.distance:g} m x {len(seeds)} seeds, odometry {args.odometry!r}, camera {args.camera_rate:g} Hz "
+        f"(latency {args.latency:g} s), observations: {source}, {workers} workers")
+    base = {"map": args.map, "route": args.route, "distance": args.distance, "odometry": args.odometry,
+            "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
+            "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate}
+    bar = tqdm(total=round(args.distance * len(seeds)), unit="m", desc="driving", disable=args.no_progress,
+               leave=False, file=sys.stderr)
+    started = time.perf_counter()
+    logs = {}
+    out = Path(args.out)
+    (out / "seeds").mkdir(parents=True, exist_ok=True)
+
+    def finished(seed, run_log) -> None:
+        # each seed's figures are saved as soon as it finishes, so a long run that is cut short
+        # still leaves its completed seeds behind
+        import json
+
+        logs[seed] = run_log
+        m = run_metrics(run_log)
+        m["seed"] = seed
+        (out / "seeds" / f"seed_{seed:03d}.json").write_text(json.dumps(_json_ready(m), indent=1))
+        np.savez_compressed(out / "seeds" / f"seed_{seed:03d}.npz", **_arrays(run_log))
+
+    if workers == 1:
+        class _Q:
+            def put(self, v):
+                bar.update(v)
+        for seed in seeds:
+            finished(*_job({**base, "seed": seed, "queue": _Q()}))
+    else:
+        ctx = mp.get_context("spawn")
+        with ctx.Manager() as manager:
+            queue = manager.Queue()
+            with ctx.Pool(workers) as pool:
+                results = pool.imap_unordered(_job, [{**base, "seed": s, "queue": queue} for s in seeds])
+                done = 0
+                while done < len(seeds):
+                    try:
+                        seed, run_log = results.next(timeout=0.5)
+                    except mp.TimeoutError:
+                        pass
+                    else:
+                        finished(seed, run_log)
+                        done += 1
+                    try:
+                        while True:
+                            bar.update(queue.get_nowait())
+                    except Exception:
+                        pass
+    bar.close()
+    wall = time.perf_counter() - started
+    per_seed = []
+    for s in seeds:
+        m = run_metrics(logs[s])
+        m["seed"] = s
+        per_seed.append(m)
+    summary = summarize(per_seed, pooled([logs[s] for s in seeds]))
+    floors = floors_met(summary)
+    order = sorted(per_seed, key=lambda m: m["position_rmse_m"])
+    median = order[(len(order) - 1) // 2]["seed"]
+    files = {}
+    if not args.no_plots:
+        files = _plots(world_map, logs[median], out,
+                       f"{world_map.name}: {source}, {args.odometry} odometry, seed {median} (median)")
+    import platform
+
+    result = {
+        "map": world_map.name, "route": args.route, "distance_m": args.distance, "seeds": seeds,
+        "odometry": args.odometry, "camera_rate_hz": args.camera_rate, "latency_s": args.latency,
+        "vision": not args.no_vision, "observations": None if args.no_vision else args.observations,
+        "targets": len(world_map.targets), "drop_targets": args.drop_targets,
+        **summary,
+        "floors": floors,
+        "median_seed": median,
+        "wall_time_s": wall,
+        "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+                    "python": platform.python_version(), "workers": workers},
+        "per_seed": per_seed,
+        "files": files,
+    }
+    import json
+
+    (out / "drift.json").write_text(json.dumps(_json_ready(result), indent=2))
+    if args.json:
+        emit_json(result)
+    else:
+        print(format_table(summary, per_seed))
+        print(f"\nposition RMSE {100 * summary['position_rmse_m']:.2f} cm, p95 {100 * summary['position_p95_m']:.2f} cm, "
+              f"max {100 * summary['position_max_m']:.2f} cm; heading RMSE "
+              f"{math.degrees(summary['heading_rmse_rad']):.3f} deg; NEES in 95 % bounds "
+              f"{100 * summary['nees_in_bounds']:.1f} % of steps; dead reckoning final error "
+              f"{summary['dead_reckoning_final_error_m']:.3f} m ({100 * summary['dead_reckoning_drift_per_m']:.2f} % "
+              f"of distance); frames with an accepted observation "
+              f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}, "
+              f"re-localizations {summary['relocalizations']}, lost {summary['lost']}; arrival error mean "
+              f"{100 * summary['arrival_error_mean_m']:.1f} cm")
+        if not args.no_vision:
+            print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))
+        print(f"wall time {wall:.1f} s; files in {out}")
+    return 0
+
+
+def _arrays(run_log) -> dict:
+    """The per-step arrays of a run worth keeping (for pooling figures over saved seeds)."""
+    return {"time": run_log.time, "distance": run_log.distance, "true_pose": run_log.true_pose,
+            "odometry_pose": run_log.odometry_pose, "estimate": run_log.estimate,
+            "covariance": run_log.covariance, "lost": run_log.lost}
+
+
+def _json_ready(obj):
+    from agvsim.commands._output import _clean
+
+    return _clean(obj)

@@ -1,0 +1,143 @@
+"""The closed loop: corridor mission on the estimate, determinism, false detections, dead reckoning, CLI."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from agvsim.evaluate import FLOORS, run_metrics
+from agvsim.mission import MissionConfig, run_mission
+from agvsim.observe import GeometricNoise, GeometricSource, RenderedSource, VisionConfig, mount_2d, targets_from_map
+from agvsim.render.mount import CameraMount
+from agvsim.world.map import load_map
+
+# The corridor's targets hang at 0.8-1.6 m on both walls about 1 m from the lanes; a level 16 mm
+# camera sees them all only from farther away: on the vehicle's left flank looking 30° right of
+# the heading (the default mount is chosen for plant_floor's wider ring road).
+CORRIDOR_MOUNT = CameraMount(forward=0.4, lateral=0.3, height=1.2, yaw=-math.radians(30.0))
+CORRIDOR_VISION = VisionConfig(mount=CORRIDOR_MOUNT)
+
+
+@pytest.fixture(scope="module")
+def corridor():
+    return load_map("corridor")
+
+
+def _floor_ok(m: dict) -> None:
+    assert m["position_rmse_m"] <= FLOORS["position_rmse_m"][1]
+    assert m["position_max_m"] <= FLOORS["position_max_m"][1]
+    assert m["heading_rmse_rad"] <= FLOORS["heading_rmse_rad"][1]
+    assert m["lost"] == 0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_corridor_loop_reaches_every_station_within_floor(corridor, seed):
+    log = run_mission(corridor, GeometricSource(corridor, CORRIDOR_VISION), np.random.default_rng(seed),
+                      MissionConfig(vision_config=CORRIDOR_VISION))
+    m = run_metrics(log)
+    assert log.completed and m["collisions"] == 0
+    route = [s for s in corridor.routes["default"][1:]]
+    assert [a[0] for a in log.arrivals] == route
+    _floor_ok(m)
+    assert m["wrong_associations"] == 0
+    # steering on the estimate: the vehicle really passes each station close by
+    assert max(a[2] for a in log.arrivals) < 0.45
+    assert m["dead_reckoning_final_error_m"] > 3 * m["position_final_m"]
+
+
+def test_deterministic(corridor):
+    cfg = MissionConfig(vision_config=CORRIDOR_VISION, distance=25.0)
+    src = GeometricSource(corridor, CORRIDOR_VISION, GeometricNoise(false_rate=0.3, detection_probability=0.9))
+    a = run_mission(corridor, src, np.random.default_rng(4), cfg)
+    b = run_mission(corridor, src, np.random.default_rng(4), cfg)
+    for name in ("true_pose", "odometry_pose", "estimate", "covariance", "command"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert [f.observations for f in a.frames] == [f.observations for f in b.frames]
+    c = run_mission(corridor, src, np.random.default_rng(5), cfg)
+    assert not np.array_equal(a.estimate, c.estimate)
+
+
+def test_false_detections_in_the_loop_are_rejected(corridor):
+    src = GeometricSource(corridor, CORRIDOR_VISION, GeometricNoise(false_rate=1.0))
+    log = run_mission(corridor, src, np.random.default_rng(1), MissionConfig(vision_config=CORRIDOR_VISION))
+    m = run_metrics(log)
+    false = [o for f in log.frames for o in f.observations if o.truth_id is None]
+    assert len(false) > 200
+    assert m["false_detections_accepted"] <= 0.01 * len(false)
+    assert m["wrong_associations"] == 0
+    _floor_ok(m)
+
+
+def test_without_vision_the_filter_is_dead_reckoning(corridor):
+    log = run_mission(corridor, None, np.random.default_rng(0), MissionConfig(vision=False, distance=30.0))
+    # the same increments: the estimate is the dead-reckoned pose (up to integrating one arc per
+    # control step instead of one per physics step)
+    np.testing.assert_allclose(log.estimate[:, :2], log.odometry_pose[:, :2], atol=5e-3)
+    assert not log.frames
+    sig = np.sqrt(np.linalg.eigvalsh(log.covariance[:, :2, :2])[:, -1])
+    assert sig[-1] > sig[0]
+
+
+def test_latency_and_rate_are_honoured(corridor):
+    cfg = MissionConfig(vision_config=CORRIDOR_VISION, distance=20.0, camera_rate=2.0, latency=0.5)
+    log = run_mission(corridor, GeometricSource(corridor, CORRIDOR_VISION), np.random.default_rng(0), cfg)
+    caps = np.array([f.capture_time for f in log.frames])
+    assert np.allclose(np.diff(caps), 0.5, atol=0.11)
+    assert all(f.fuse_time - f.capture_time >= 0.5 - 1e-9 for f in log.frames)
+    with pytest.raises(ValueError):
+        MissionConfig(camera_rate=0.0)
+    with pytest.raises(ValueError):
+        run_mission(corridor, None, np.random.default_rng(0), MissionConfig())
+
+
+def test_mount_and_targets_are_plain_data(corridor):
+    m2 = mount_2d(CORRIDOR_MOUNT)
+    assert (m2.x, m2.y, m2.yaw) == (0.4, 0.3, -math.radians(30.0))
+    tm = targets_from_map(corridor)
+    assert len(tm) == len(corridor.targets)
+    assert tm.ids[0] == corridor.targets[0].id
+
+
+def test_drift_cli_json(tmp_path, capsys):
+    from agvsim.cli import main
+
+    rc = main(["drift", "--map", "corridor", "--observations", "geometric", "--distance", "30", "--seeds", "2",
+               "--workers", "1", "--no-progress", "--out", str(tmp_path), "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("position_rmse_m", "position_p95_m", "position_max_m", "heading_rmse_rad", "nees_in_bounds",
+                "dead_reckoning_final_error_m", "frames_with_accepted_observation", "lost", "rejections",
+                "relocalizations", "arrival_error_mean_m", "dead_reckoning_drift_per_m", "floors", "per_seed"):
+        assert key in out, key
+    assert out["seeds"] == [0, 1] and out["observations"] == "geometric"
+    assert (tmp_path / "trajectories.png").exists() and (tmp_path / "error_vs_distance.png").exists()
+    rc = main(["drift", "--map", "corridor", "--no-vision", "--distance", "20", "--seeds", "1", "--workers", "1",
+               "--no-progress", "--no-plots", "--out", str(tmp_path), "--json"])
+    assert rc == 0
+    assert json.loads(capsys.readouterr().out)["vision"] is False
+    assert main(["drift", "--seeds", "0", "--out", str(tmp_path)]) == 2
+
+
+def _renderer_works() -> bool:
+    if not RenderedSource.available():
+        return False
+    try:
+        from agvsim.render.gl import choose_platform
+
+        choose_platform()
+    except Exception:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _renderer_works(), reason="camera renderer (issue 4) not available")
+def test_short_rendered_loop(corridor):
+    """The first 5 m of corridor (target C01 in view) with rendered frames and the real localizer."""
+    cfg = MissionConfig(vision_config=CORRIDOR_VISION, distance=5.0)
+    log = run_mission(corridor, RenderedSource(corridor, CORRIDOR_VISION), np.random.default_rng(0), cfg)
+    m = run_metrics(log)
+    assert m["accepted"] >= 3
+    assert m["wrong_associations"] == 0
+    assert m["position_max_m"] < 0.03
