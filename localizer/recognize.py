@@ -151,8 +151,8 @@ def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, thr: np.ndarray, spa
 
     The stack through the seed's row ``y`` must be at least ``M`` rows tall: ``M``
     is ``min_rows`` or, if more, the least height the aspect test allows for the
-    seed's width (``lo_ratio`` times it). On every ``min_rows // 6``-th row within ``M`` of ``y``,
-    11 pixels across
+    seed's width (``lo_ratio`` times it). On 8 rows either side of ``y``, spaced ``M / 8``
+    (at least ``min_rows // 6``) apart, 11 pixels across
     the seed -- the middle of each margin, and the first, middle and last
     non-boundary pixel of each run -- thresholded at the seed's midway level
     ``thr`` must have the seed's shades (the margin pixels may be blurred grey, within a
@@ -167,10 +167,12 @@ def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, thr: np.ndarray, spa
     xb = tri.x[seeds]
     width = xb[:, 3] - xb[:, 0]
     need = np.maximum(int(p.min_rows), (lo_ratio * width).astype(int))  # (S,) least stack height
-    step = max(1, int(p.min_rows) // 6)  # sample every step-th row (the stack is connected)
-    kmax = (int(need.max()) - 1) // step + 1
-    off = np.arange(-kmax, kmax + 1) * step
-    rows = y[:, None] + off[None, :]  # (S, 2K+1)
+    # sample every step-th row (the stack is connected), kmax samples each way: step grows with
+    # the least height, at most min_rows // 6 (about 2 rows) for the smallest targets
+    kmax = 8
+    step = np.maximum(max(1, int(p.min_rows) // 6), -(-(need - 1) // kmax))  # (S,)
+    off = np.arange(-kmax, kmax + 1)
+    rows = y[:, None] + off[None, :] * step[:, None]  # (S, 2K+1)
     inside = (rows >= 0) & (rows < h)
     a = xb[:, :3]
     b = xb[:, 1:]
@@ -193,11 +195,12 @@ def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, thr: np.ndarray, spa
     marg = v[:, :, [0, 10]].astype(np.float32)
     wrong = np.where(pos[:, None, None], marg < t - tol[:, :, None], marg > t + tol[:, :, None])
     bad = miss[:, :, 1:10].any(axis=2) | wrong.any(axis=2) | ~inside  # (S, 2K+1)
-    if p.max_row_gap >= step:  # a single failing row between good ones does not break a stack
-        iso = bad.copy()
-        iso[:, 1:-1] &= ~bad[:, :-2] & ~bad[:, 2:]
-        iso[:, [0, -1]] = False
-        bad &= ~iso
+    # a single failing sampled row between good ones does not break a stack where rows are
+    # sampled no further apart than max_row_gap
+    iso = bad.copy()
+    iso[:, 1:-1] &= ~bad[:, :-2] & ~bad[:, 2:]
+    iso[:, [0, -1]] = False
+    bad &= ~(iso & (step <= p.max_row_gap + 1)[:, None])
     # sampled rows of the connected run through y: up to the first failing one either way
     upb = bad[:, kmax::-1]
     dnb = bad[:, kmax:]
@@ -213,21 +216,26 @@ _PATTERN = np.array([True, False, False, False, True, True, True, False, False, 
 
 def _run_through(idx: np.ndarray, at: int, step: int):
     """The connected run of sorted indices ``idx`` through ``at`` (or within ``step`` of
-    it), where consecutive members differ by at most ``step``; ``(first, last)`` or None."""
-    if idx.size == 0:
+    it), where consecutive members differ by at most ``step``; ``(first, last)`` or None.
+    (A plain loop: ``idx`` holds a few dozen rows, less than numpy's call overhead.)"""
+    v = idx.tolist()
+    n = len(v)
+    if n == 0:
         return None
     j = int(np.searchsorted(idx, at))
-    if j < idx.size and idx[j] - at <= step:
+    if j < n and v[j] - at <= step:
         pass
-    elif j > 0 and at - idx[j - 1] <= step:
+    elif j > 0 and at - v[j - 1] <= step:
         j -= 1
     else:
         return None
-    brk = np.flatnonzero(np.diff(idx) > step)  # a break after position brk
-    k = int(np.searchsorted(brk, j))
-    lo = int(brk[k - 1]) + 1 if k > 0 else 0
-    hi = int(brk[k]) if k < brk.size else idx.size - 1
-    return int(idx[lo]), int(idx[hi])
+    lo = j
+    while lo > 0 and v[lo] - v[lo - 1] <= step:
+        lo -= 1
+    hi = j
+    while hi < n - 1 and v[hi + 1] - v[hi] <= step:
+        hi += 1
+    return v[lo], v[hi]
 
 
 def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, p: DetectorParams,

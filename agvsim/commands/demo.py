@@ -1,10 +1,11 @@
 """``agvsim demo``: drive the default route of the default map and show how
-dead reckoning drifts.
+dead reckoning drifts, and what the camera sees.
 
 The vehicle follows the route with pure pursuit steering on its *true* pose
 (the camera and the filter come later), with ``typical`` odometry. It prints
 a progress bar, a table of dead-reckoning error against distance, and writes
-a top-down picture and an error plot.
+a top-down picture, an error plot and a strip of rendered camera frames
+along the route with the targets the localizer found.
 """
 from __future__ import annotations
 
@@ -28,6 +29,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--frames", type=int, default=8,
+                   help="camera frames in the strip along the route, 0 for none (default: %(default)s)")
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -105,6 +108,16 @@ def run(args) -> int:
     plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance,
                              {f"dead reckoning ({args.odometry})": error},
                              title=f"{world_map.name}: dead-reckoning error, seed {args.seed}")
+    files = {"topdown": str(topdown), "error_plot": str(plot)}
+    strip = None
+    if args.frames > 0:
+        from agvsim.render.mount import CameraMount
+        from agvsim.render.strip import route_poses, save_camera_strip
+
+        mount = CameraMount.side_looking("right")  # the route circles counter-clockwise: targets on the right
+        strip = save_camera_strip(world_map, route_poses(world_map, args.frames, route=args.route, mount=mount),
+                                  out / "camera_strip.png", mount=mount, rng=rng)
+        files["camera_strip"] = str(strip["path"])
     result = {
         "map": world_map.name, "route": args.route, "odometry": args.odometry, "seed": args.seed,
         "completed": bool(run_log.completed), "distance_m": float(run_log.distance[-1]),
@@ -116,8 +129,10 @@ def run(args) -> int:
         "collisions": run_log.collisions,
         "stations_reached": len(run_log.arrivals),
         "table": table,
-        "files": {"topdown": str(topdown), "error_plot": str(plot)},
+        "files": files,
     }
+    if strip is not None:
+        result["camera_frames"] = strip["frames"]
     if args.json:
         emit_json(result)
         return 0
@@ -128,4 +143,9 @@ def run(args) -> int:
     print(format_table(table))
     print(f"Wrote the top-down view to {topdown}")
     print(f"Wrote the error plot to   {plot}")
+    if strip is not None:
+        found = sum(len(f["found"]) for f in strip["frames"])
+        visible = sum(len(f["visible"]) for f in strip["frames"])
+        print(f"Wrote {len(strip['frames'])} camera frames to {strip['path']} "
+              f"(localizer found {found} targets; {visible} visible in the frames)")
     return 0

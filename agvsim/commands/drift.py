@@ -235,7 +235,7 @@ def run(args) -> int:
         "floors": floors,
         "median_seed": median,
         "wall_time_s": wall,
-        "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+        "machine": {"cpu": _cpu_name(), "cores": os.cpu_count(),
                     "python": platform.python_version(), "workers": workers},
         "per_seed": per_seed,
         "files": files,
@@ -260,6 +260,20 @@ def run(args) -> int:
             print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))
         print(f"wall time {wall:.1f} s; files in {out}")
     return 0
+
+
+def _cpu_name() -> str:
+    """The CPU's model name (from /proc/cpuinfo on Linux), else the platform's machine type."""
+    import platform
+
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
 
 
 def _arrays(run_log) -> dict:

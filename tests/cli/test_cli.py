@@ -26,7 +26,7 @@ def test_every_subcommand_has_help(argv, capsys):
 
 
 def test_demo_json_reports_drift_and_writes_pictures(tmp_path, capsys):
-    code = main(["demo", "--json", "--no-progress", "--out", str(tmp_path), "--seed", "3"])
+    code = main(["demo", "--json", "--no-progress", "--out", str(tmp_path), "--seed", "3", "--frames", "2"])
     assert code == 0
     captured = capsys.readouterr()
     result = json.loads(captured.out)  # exactly one JSON object on stdout
@@ -38,14 +38,15 @@ def test_demo_json_reports_drift_and_writes_pictures(tmp_path, capsys):
     assert len(result["table"]) == 10
     distances = [row["distance_m"] for row in result["table"]]
     assert distances == sorted(distances)
-    for key in ("topdown", "error_plot"):
+    assert len(result["camera_frames"]) == 2
+    for key in ("topdown", "error_plot", "camera_strip"):
         path = tmp_path / result["files"][key].rsplit("/", 1)[-1]
         assert path.exists() and path.stat().st_size > 1000
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_demo_table_output(tmp_path, capsys):
-    assert main(["demo", "--no-progress", "--out", str(tmp_path), "--odometry", "ideal"]) == 0
+    assert main(["demo", "--no-progress", "--out", str(tmp_path), "--odometry", "ideal", "--frames", "0"]) == 0
     out = capsys.readouterr().out
     assert "position error (m)" in out and "Wrote the top-down view" in out
     # ideal odometry: every row of the table shows a zero error at this precision

