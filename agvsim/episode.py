@@ -104,19 +104,52 @@ class Episode:
         config: rates, vehicle, odometry error model.
         rng: the episode's generator (odometry noise, camera noise).
         localization: one of :data:`LOCALIZATION_MODES`.
+        vision: the camera (:class:`agvsim.observe.VisionConfig`); default mount and 16 mm lens.
+        observations: observation source for ``ekf``: ``rendered`` (the
+            renderer + localizer), ``synthetic`` or ``geometric`` (see
+            :mod:`agvsim.observe`), or a source object to reuse (keep one
+            rendered source per process: it owns the GL context).
+        camera_rate: frames per second (Hz).
+        latency: capture-to-fusion delay (s).
+        conditions: keyword overrides of :class:`agvsim.render.RenderConditions`
+            for rendered frames (e.g. ``{"exposure": 0.5}``).
+        capture_frames: render camera frames even when not localizing with
+            them (``observe_image`` with ``truth``/``odometry``).
     """
 
     def __init__(self, world_map, start_pose, config: SimConfig, rng: np.random.Generator,
-                 localization: str = "odometry") -> None:
+                 localization: str = "odometry", vision=None, observations: str = "rendered",
+                 camera_rate: float = 4.0, latency: float = 0.25, conditions: dict | None = None,
+                 capture_frames: bool = False) -> None:
         if localization not in LOCALIZATION_MODES:
             raise ValueError(f"localization must be one of {LOCALIZATION_MODES}, got {localization!r}")
-        if localization == "ekf":
-            raise NotImplementedError("localization='ekf' is wired in with the closed loop (agvsim.mission)")
+        from agvsim.mission import filter_config_for
+        from agvsim.observe import VisionConfig, make_source, targets_from_map
+        from localizer.filter import PoseEKF
+
         self.map = world_map
         self.config = config
         self.localization = localization
-        self.sim = Simulation(world_map, start_pose, config, rng)
+        sim_rng, cam_rng = rng.spawn(2)
+        self.sim = Simulation(world_map, start_pose, config, sim_rng)
         self._cov = _OdometryCovariance(config.vehicle.track_width, config.odometry.wheel_noise)
+        vision = vision if vision is not None else VisionConfig()
+        self.vision = vision
+        source = None
+        if localization == "ekf" or capture_frames:
+            if isinstance(observations, str):
+                kw = {"conditions": conditions} if observations == "rendered" and conditions else {}
+                source = make_source(observations, world_map, vision, **kw)
+            else:
+                source = observations
+        self.source = source
+        x0 = np.asarray(start_pose, dtype=float)
+        P0 = np.diag(np.array([0.01, 0.01, 0.002]) ** 2)
+        ekf = PoseEKF(x0, P0, targets_from_map(world_map), vision.mount2d,
+                      filter_config_for(config, vision), t0=0.0)
+        from agvsim.closed_loop import ClosedLoop
+
+        self.loop = ClosedLoop(self.sim, ekf, source, cam_rng, camera_rate=camera_rate, latency=latency)
         self.accepted_total = 0
         self.rejected_total = 0
 
@@ -132,23 +165,44 @@ class Episode:
         return np.array([x, y, wrap_angle(th)])
 
     @property
+    def estimated_pose(self) -> np.ndarray:
+        """(3,) the filter's estimate (dead reckoning corrected by the camera)."""
+        return self.loop.ekf.pose()
+
+    @property
     def believed_pose(self) -> np.ndarray:
-        return self.true_pose if self.localization == "truth" else self.odometry_pose
+        if self.localization == "truth":
+            return self.true_pose
+        if self.localization == "odometry":
+            return self.odometry_pose
+        return self.estimated_pose
 
     @property
     def covariance(self) -> np.ndarray:
         if self.localization == "truth":
             return np.zeros((3, 3))
-        return self._cov.cov.copy()
+        if self.localization == "odometry":
+            return self._cov.cov.copy()
+        return self.loop.ekf.covariance()
+
+    @property
+    def last_frame(self) -> np.ndarray | None:
+        """The latest camera frame ((H, W) uint8), if the source renders frames."""
+        return getattr(self.source, "last_frame", None)
 
     def step(self, v: float, omega: float) -> EpisodeStep:
         """Apply (v m/s, ω rad/s) for one control step."""
-        result = self.sim.step(v, omega)
-        inc = result.odometry
+        loop_step = self.loop.step(v, omega)
+        inc = loop_step.sim.odometry
         self._cov.predict(inc.pose[2], inc.ds, inc.dtheta)
         dt = self.config.control_dt
         half = 0.5 * self.config.vehicle.track_width
         wheels = np.array([(inc.ds - inc.dtheta * half) / dt, (inc.ds + inc.dtheta * half) / dt])
+        accepted, rejected = loop_step.accepted, loop_step.rejected
+        self.accepted_total += accepted
+        self.rejected_total += rejected
+        frame = self.last_frame if loop_step.captured else None
         return EpisodeStep(believed_pose=self.believed_pose, covariance=self.covariance,
-                           wheel_speeds=wheels, collided=result.collided,
-                           in_contact=self.sim.contacts.in_contact)
+                           wheel_speeds=wheels, collided=loop_step.sim.collided,
+                           in_contact=self.sim.contacts.in_contact, accepted=accepted,
+                           rejected=rejected, frame=frame)

@@ -63,7 +63,8 @@ class AGVEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("agvsim/PlantFloor-v0", map=..., route=..., task=...,
     odometry="typical", localization="ekf" | "odometry" | "truth",
-    camera_rate=4.0, lens=16, lighting_randomization=0.0, observe_image=False,
+    camera_rate=4.0, camera_latency=0.25, observations="rendered" | "synthetic" |
+    "geometric", lens=16, lighting_randomization=0.0, observe_image=False,
     policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
     error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
@@ -79,7 +80,10 @@ class AGVEnv(gym.Env):
     ``render_mode="rgb_array"``: the top-down view with the true,
     dead-reckoned and estimated trajectories, the 2σ covariance ellipse, the
     camera's field of view, and the latest camera frame inset. No OpenGL is
-    touched until a camera frame is needed.
+    touched until a camera frame is needed, so ``gymnasium.make_vec(...,
+    vectorization_mode="async")`` works with forked workers. A process that
+    has already rendered camera frames itself must not fork renderers: pass
+    ``vector_kwargs={"context": "spawn"}`` there.
 
     ## Version history
     - v0: initial release.
@@ -121,6 +125,13 @@ class AGVEnv(gym.Env):
             obs["image"] = spaces.Box(0, 255, (480, 512, 1), np.uint8)
         self.observation_space = spaces.Dict(obs)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        from agvsim.observe import VisionConfig, make_source
+
+        self.vision = VisionConfig(focal_mm=float(self.config.lens))
+        needs_camera = self.config.localization == "ekf" or self.config.observe_image
+        # one observation source per env, reused across episodes: a rendered
+        # source owns the (lazily created) GL context
+        self._source = make_source(self.config.observations, self.map, self.vision) if needs_camera else None
         self._episode = None
         self._goal = None
         self._view = None
@@ -142,8 +153,15 @@ class AGVEnv(gym.Env):
             others = [i for i in ids if i != start_id]
             goal = self.map.station(others[int(rng.integers(len(others)))])
         self._goal = goal
+        if self._source is not None and hasattr(self._source, "conditions"):
+            spread = self.config.lighting_randomization
+            exposure = float(np.exp(rng.normal(0.0, spread))) if spread > 0 else 1.0
+            self._source.conditions = {**self._source.conditions, "exposure": exposure}
         self._episode = Episode(self.map, start.pose, self.sim_config, rng,
-                                localization=self.config.localization)
+                                localization=self.config.localization, vision=self.vision,
+                                observations=self._source, camera_rate=self.config.camera_rate,
+                                latency=self.config.camera_latency,
+                                capture_frames=self.config.observe_image)
         self._steps = 0
         self._frame = None
         self._prev_goal_distance = self._goal_distance()

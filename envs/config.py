@@ -22,9 +22,14 @@ class EnvConfig:
         odometry: odometry error preset (``ideal``, ``typical``, ``worn``).
         localization: pose the agent observes: ``ekf``, ``odometry`` or ``truth``.
         camera_rate: camera frames per second (Hz).
+        camera_latency: delay from capture to fusion (s).
+        observations: what the camera reports: ``rendered`` (pyrender frames
+            and the localizer, the real thing), ``synthetic`` (warped targets
+            on a plain background and the localizer) or ``geometric`` (true
+            target geometry plus noise; fast, for experiments).
         lens: focal length of the thesis camera (mm): 16 or 50.
-        lighting_randomization: scale the map's lighting by a random factor
-            per episode (dimensionless spread, 0 disables it).
+        lighting_randomization: per-episode exposure factor exp(N(0, σ²)) of
+            rendered frames, σ this value (dimensionless; 0 disables it).
         observe_image: add the latest camera frame to the observation.
         policy_rate: actions per second (Hz); a whole divisor of the physics rate.
         goal_radius: the goal is reached within this distance (m).
@@ -40,6 +45,8 @@ class EnvConfig:
     odometry: str = "typical"
     localization: str = "ekf"
     camera_rate: float = 4.0  # Hz
+    camera_latency: float = 0.25  # s
+    observations: str = "rendered"
     lens: float = 16.0  # mm
     lighting_randomization: float = 0.0  # dimensionless
     observe_image: bool = False
@@ -57,6 +64,13 @@ class EnvConfig:
             raise ValueError(f"localization must be one of {LOCALIZATION_MODES}, got {self.localization!r}")
         if self.odometry not in ("ideal", "typical", "worn"):
             raise ValueError(f"odometry must be 'ideal', 'typical' or 'worn', got {self.odometry!r}")
+        if self.observations not in ("rendered", "synthetic", "geometric"):
+            raise ValueError(f"observations must be 'rendered', 'synthetic' or 'geometric', got {self.observations!r}")
+        if self.observe_image and self.observations != "rendered":
+            raise ValueError("observe_image=True needs observations='rendered' (the other sources draw no scene)")
+        if not isinstance(self.camera_latency, (int, float)) or not math.isfinite(self.camera_latency) \
+                or self.camera_latency < 0:
+            raise ValueError(f"camera_latency must be a finite number >= 0 (s), got {self.camera_latency!r}")
         if self.lens not in (16.0, 50.0):
             raise ValueError(f"lens must be 16 or 50 (mm), got {self.lens!r}")
         for name in ("camera_rate", "policy_rate", "goal_radius", "error_scale"):

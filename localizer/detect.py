@@ -124,9 +124,10 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
     # the measured edges must still make a target: three near-equal runs (§4.5.1's tolerances,
     # without the allowance for a common edge shift: subpixel edges are far better than the
     # thresholded runs) and two bars taller than the minimum height
-    widths = np.diff(np.asarray(m.edges_x, float))
-    if not (widths.min() > 0 and widths.max() - widths.min() <= p.width_tolerance * widths.max() + p.width_slack
-            and float(np.min(m.bar_heights)) >= 0.5 * p.min_rows):
+    e = m.edges_x.tolist()
+    widths = (e[1] - e[0], e[2] - e[1], e[3] - e[2])
+    if not (min(widths) > 0 and max(widths) - min(widths) <= p.width_tolerance * max(widths) + p.width_slack
+            and min(m.bar_heights.tolist()) >= 0.5 * p.min_rows):
         return None
     if method == "thesis":
         est = thesis_pose(m, camera, target)
@@ -138,14 +139,13 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
         est = _exact(img, camera, target, v, p, m)
         if est is None:
             return None
-    h1, h2 = (float(x) for x in m.bar_heights)
-    ex = tuple(float(x) for x in m.edges_x)
+    h1, h2 = m.bar_heights.tolist()
+    ex = tuple(m.edges_x.tolist())
+    top, bottom = tuple(m.top_y.tolist()), tuple(m.bottom_y.tolist())
     meas = ImageMeasurements(
         edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
-        delta_y=0.5 * (h1 + h2),
-        centre=(0.25 * sum(ex), float(0.25 * (np.sum(m.top_y) + np.sum(m.bottom_y)))),
-        bar_cx=tuple(float(x) for x in m.bar_cx), top_y=tuple(float(x) for x in m.top_y),
-        bottom_y=tuple(float(x) for x in m.bottom_y), rows=(int(v.rows[0]), int(v.rows[-1])),
+        delta_y=0.5 * (h1 + h2), centre=(0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))),
+        bar_cx=tuple(m.bar_cx.tolist()), top_y=top, bottom_y=bottom, rows=(int(v.rows[0]), int(v.rows[-1])),
         n_rows=v.n_rows, dark=float(v.dark), bright=float(v.bright))
     return TargetObservation(
         distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from localizer.camera import Camera
@@ -60,7 +61,7 @@ class EdgeMeasurements:
 def _rough_ends(image: np.ndarray, st: Stack, col: int, thr: float) -> tuple[int, int]:
     """First and last row of the bar crossing the stack at column ``col`` (see
     :func:`localizer.recognize._rough_ends`)."""
-    return rough_ends(image, int(st.rows[0]), int(st.rows[-1]), st.n_rows, col, thr, st.positive)
+    return rough_ends(image, int(st.rows[0]), int(st.rows[-1]), st.n_rows, int(col), float(thr), bool(st.positive))
 
 
 def _undistort_vertical(camera: Camera, xs: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -70,22 +71,61 @@ def _undistort_vertical(camera: Camera, xs: np.ndarray, rows: np.ndarray) -> np.
     return camera.undistort_points(pts)[:, 0].reshape(xs.shape)
 
 
+@numba.njit(cache=True, nogil=True)
+def _half_pixel_rows(image, rows, x, lim, half, window):
+    """Half-pixel rule along each row of ``rows`` (n,) around each rough boundary ``x`` (n, 4)
+    (first pixel of the next run): the 1x2 gradient ``|f(j) - f(j+1)|`` (eq 4-20) at
+    ``j = x - 1 + o``, ``o = -half .. window - half - 1`` with ``|o| <= lim[k]`` (4,); the
+    edge is half way between the two pixels of the largest (the first, on ties).
+    Returns ``(n, 4)`` x (px)."""
+    w = image.shape[1]
+    out = np.empty((rows.size, 4))
+    for i in range(rows.size):
+        r = rows[i]
+        for k in range(4):
+            best = -2
+            bj = 0
+            for o in range(-half, window - half):
+                j = min(max(x[i, k] - 1 + o, 0), w - 2)
+                g = abs(np.int16(image[r, j]) - np.int16(image[r, j + 1])) if abs(o) <= lim[k] else -1
+                if g > best:
+                    best = g
+                    bj = j
+            out[i, k] = bj + 0.5
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _half_pixel_cols(image, cols, j0, half, window):
+    """Half-pixel rule down each column of ``cols`` (m,) around the boundary row ``j0``
+    (between rows ``j0`` and ``j0 + 1``): the mean over the columns of the upper row of the
+    largest 2x1 gradient within ``window`` rows (NaN if ``m`` is 0)."""
+    h = image.shape[0]
+    if cols.size == 0:
+        return np.nan
+    acc = 0.0
+    for c in cols:
+        best = -1
+        bj = 0
+        for o in range(-half, window - half):
+            j = min(max(j0 + o, 0), h - 2)
+            g = abs(np.int16(image[j, c]) - np.int16(image[j + 1, c]))
+            if g > best:
+                best = g
+                bj = j
+        acc += bj
+    return acc / cols.size
+
+
 def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) -> EdgeMeasurements:
     """Half-pixel-rule edges (§4.6.2) of a verified stack."""
-    img = image.astype(np.int16)
     h, w = image.shape
     half = window // 2
     rows = st.rows
-    # 1x2 window positions j (gradient between pixels j and j+1), around boundary j0 = x - 1
-    off = np.arange(-half, window - half)
-    j = (st.x - 1)[:, :, None] + off[None, None, :]
-    j = np.clip(j, 0, w - 2)
-    g = np.abs(img[rows[:, None, None], j] - img[rows[:, None, None], j + 1])
     # the neighbourhood stops half way to the next edge (narrow bars: 9 px would reach it)
     runs = np.diff(st.bounds)
-    lim = np.maximum(1, np.floor(0.5 * np.minimum(np.r_[runs[0], runs], np.r_[runs, runs[-1]]))).astype(int)
-    g = np.where(np.abs(off)[None, None, :] <= lim[None, :, None], g, -1)
-    xs = np.take_along_axis(j, g.argmax(axis=2)[:, :, None], axis=2)[:, :, 0] + 0.5  # (n, 4)
+    lim = np.maximum(1, np.floor(0.5 * np.minimum(np.r_[runs[0], runs], np.r_[runs, runs[-1]]))).astype(np.int64)
+    xs = _half_pixel_rows(image, rows, np.ascontiguousarray(st.x, np.int64), lim, half, int(window))  # (n, 4)
     xs = _undistort_vertical(camera, xs, rows)
     edges = xs.mean(axis=0)
     sig = np.full(4, 0.5 / math.sqrt(3.0))  # half-pixel rule: uniform error of +-0.5 px
@@ -95,12 +135,10 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
         cx = 0.5 * (edges[2 * k] + edges[2 * k + 1])
         col = int(np.clip(round(cx), 0, w - 1))
         rt, rb = _rough_ends(image, st, col, thr)
-        ys = []
-        for j0 in (rt - 1, rb):  # boundary rows: (rt-1 | rt) and (rb | rb+1)
-            jj = np.clip(j0 + np.arange(-half, window - half), 0, h - 2)
-            gg = np.abs(img[jj, col] - img[jj + 1, col])
-            ys.append(float(jj[int(gg.argmax())]) + 0.5)
-        yt, yb = ys
+        # boundary rows: (rt-1 | rt) and (rb | rb+1)
+        one = np.array([col], np.int64)
+        yt = _half_pixel_cols(image, one, rt - 1, half, int(window)) + 0.5
+        yb = _half_pixel_cols(image, one, rb, half, int(window)) + 0.5
         if camera.has_distortion:
             pts = camera.undistort_points(np.array([[col, yt], [col, yb]], float))
             yt, yb, cx = pts[0, 1], pts[1, 1], pts[:, 0].mean()
@@ -110,13 +148,9 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
         # the same half-pixel rule on every interior column of the bar, averaged
         # (used only to break ties between h1 and h2 at the centre columns)
         cols = np.arange(int(math.ceil(edges[2 * k] + 1)), int(math.floor(edges[2 * k + 1] - 1)) + 1)
-        cols = cols[(cols >= 0) & (cols < w)] if cols.size else np.array([col])
-        hs = []
-        for j0 in (rt - 1, rb):
-            jj = np.clip(j0 + np.arange(-half, window - half), 0, h - 2)
-            gg = np.abs(img[jj[:, None], cols[None, :]] - img[jj[:, None] + 1, cols[None, :]])
-            hs.append(jj[gg.argmax(axis=0)].mean())
-        mean_h.append(hs[1] - hs[0])
+        cols = cols[(cols >= 0) & (cols < w)] if cols.size else one
+        mean_h.append(_half_pixel_cols(image, cols, rb, half, int(window))
+                      - _half_pixel_cols(image, cols, rt - 1, half, int(window)))
     diff = mean_h[1] - mean_h[0]
     return EdgeMeasurements(edges, sig, np.array(cxs), np.array(tops), np.array(bots),
                             np.full(2, 0.5 / math.sqrt(3.0)), np.full(2, 0.5 / math.sqrt(3.0)),
@@ -125,23 +159,187 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
                             0 if abs(diff) < 1e-9 else (1 if diff > 0 else -1))
 
 
-def _centroid(profiles: np.ndarray, centre: np.ndarray, hw: np.ndarray, j0: np.ndarray) -> np.ndarray:
-    """Centroid of signed differences ``profiles`` (..., L) located at ``j0 + i + 0.5``,
-    weighted by a trapezoid window of half-width ``hw`` centred at ``centre``."""
-    pos = j0[..., None] + np.arange(profiles.shape[-1]) + 0.5
-    wgt = np.minimum(np.maximum(hw[..., None] + 0.5 - np.abs(pos - centre[..., None]), 0.0), 1.0)
-    d = profiles * wgt
-    s = d.sum(axis=-1)
-    s = np.where(np.abs(s) < 1e-9, 1e-9, s)
-    return (d * pos).sum(axis=-1) / s
+@numba.njit(cache=True, nogil=True)
+def _centroid(d, centre, hw, j0):
+    """Centroid of signed differences ``d`` (L,) located at ``j0 + i + 0.5``, weighted by
+    a trapezoid window of half-width ``hw`` centred at ``centre`` (all px)."""
+    s = 0.0
+    sp = 0.0
+    for i in range(d.size):
+        pos = j0 + i + 0.5
+        wgt = min(max(hw + 0.5 - abs(pos - centre), 0.0), 1.0)
+        v = d[i] * wgt
+        s += v
+        sp += v * pos
+    if abs(s) < 1e-9:
+        s = 1e-9
+    return sp / s
 
 
-def _refine(diff: np.ndarray, j0: np.ndarray, start: np.ndarray, hw: np.ndarray) -> np.ndarray:
-    """Gradient-peak centroid (:func:`_centroid`) re-centred once on its own estimate."""
-    c = _centroid(diff, start, hw, j0)
-    c = np.minimum(np.maximum(c, start - hw), start + hw)
-    c = _centroid(diff, c, hw, j0)
-    return np.minimum(np.maximum(c, start - hw - 0.5), start + hw + 0.5)
+@numba.njit(cache=True, nogil=True)
+def _refine(image, fixed, j0, start, hw, sgn, length, vertical, d):
+    """Gradient-peak centroid (:func:`_centroid`) of one edge, re-centred once on its own estimate.
+
+    The profile is the ``length + 1`` pixels from ``j0`` along row ``fixed`` (or along
+    column ``fixed`` when ``vertical``); ``d`` (length,) float32 scratch receives the
+    differences ``(f(j+1) - f(j)) * sgn``. Returns the edge position (px), within
+    ``hw + 0.5`` of ``start``.
+    """
+    for i in range(length):
+        if vertical:
+            d[i] = (np.float32(image[j0 + i + 1, fixed]) - np.float32(image[j0 + i, fixed])) * sgn
+        else:
+            d[i] = (np.float32(image[fixed, j0 + i + 1]) - np.float32(image[fixed, j0 + i])) * sgn
+    c = _centroid(d, start, hw, j0)
+    c = min(max(c, start - hw), start + hw)
+    c = _centroid(d, c, hw, j0)
+    return min(max(c, start - hw - 0.5), start + hw + 0.5)
+
+
+#: differences per edge profile (px): 12 pixels around each rough edge
+_L = 11
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertical_edges(image, rows, bounds, positive, length):
+    """:func:`_refine` of the four vertical edges on every row of ``rows`` (n,) -> ``(n, 4)`` x (px).
+
+    ``bounds`` (4,) the stack's median run boundaries (first pixel of bar 1, gap, bar 2,
+    one past bar 2). The window half-widths are half the neighbouring run (the side
+    margins are taken as half a bar), clipped to 1..4 px.
+    """
+    w = image.shape[1]
+    r0, r1, r2 = bounds[1] - bounds[0], bounds[2] - bounds[1], bounds[3] - bounds[2]
+    bar = (r0 + r1 + r2) / 3.0
+    hw = np.array([min(r0, 0.5 * bar), min(r0, r1), min(r1, r2), min(r2, 0.5 * bar)]) / 2.0
+    pol = np.float32(1.0 if positive else -1.0)
+    out = np.empty((rows.size, 4))
+    d = np.empty(length, np.float32)
+    for k in range(4):
+        hwk = min(max(hw[k], 1.0), 4.0)
+        start = bounds[k] - 0.5  # rough edge: between the last pixel of one run and the first of the next
+        j0 = min(max(int(np.rint(start - 0.5)) - length // 2, 0), w - length - 1)
+        sgn = -pol if k % 2 == 0 else pol  # sign of f(x+1) - f(x) across the edge
+        for i in range(rows.size):
+            out[i, k] = _refine(image, rows[i], j0, start, hwk, sgn, length, False, d)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _column_stats(xs):
+    """Mean ``(4,)`` and sample standard deviation ``(4,)`` of the ``(n, 4)`` edge positions
+    (0.5 px if ``n < 2``), and the root mean square of those deviations (px)."""
+    n = xs.shape[0]
+    mean = np.empty(4)
+    sd = np.full(4, 0.5)
+    for k in range(4):
+        s = 0.0
+        for i in range(n):
+            s += xs[i, k]
+        mean[k] = s / n
+        if n > 1:
+            ss = 0.0
+            for i in range(n):
+                ss += (xs[i, k] - mean[k]) ** 2
+            sd[k] = math.sqrt(ss / (n - 1))
+    return mean, sd, math.sqrt((sd * sd).mean())
+
+
+@numba.njit(cache=True, nogil=True)
+def _horizontal_edges(image, edges, cxs, ends, positive, length):
+    """:func:`_refine` down every interior column of each bar (1 px in from its ``edges`` (4,)),
+    around the straight line through the rough bar ends ``ends`` (2, 2) ((top, bottom) row
+    per bar) for the tops, then the bottoms; ``cxs`` (2,) the bar centre columns.
+
+    Returns ``(cols (m,), group (m,), y (m,))``, group = 2 * side + bar (side 0 = top).
+    The window half-width is an eighth of the shorter bar, clipped to 1..4 px.
+    """
+    h, w = image.shape
+    hbar = min(ends[0, 1] - ends[0, 0] + 1, ends[1, 1] - ends[1, 0] + 1)
+    hw = min(max(math.floor(hbar / 8.0), 1.0), 4.0)
+    ca = np.empty(2, np.int64)
+    cb = np.empty(2, np.int64)
+    for k in range(2):
+        a = int(math.ceil(edges[2 * k] + 1.0))
+        b = int(math.floor(edges[2 * k + 1] - 1.0))
+        if b < a:
+            a = b = int(np.rint(cxs[k]))
+        ca[k] = max(a, 0)
+        cb[k] = min(b, w - 1) + 1
+    n0, n1 = max(cb[0] - ca[0], 0), max(cb[1] - ca[1], 0)
+    m = 2 * (n0 + n1)
+    cols = np.empty(m, np.int64)
+    grp = np.empty(m, np.int64)
+    ys = np.empty(m)
+    d = np.empty(length, np.float32)
+    pol = np.float32(1.0 if positive else -1.0)
+    dx = max(cxs[1] - cxs[0], 1e-6)
+    i = 0
+    for side in range(2):
+        # rough line of the tops (bottoms): between the last background row and the first bar row
+        y0 = ends[0, side] - 0.5 if side == 0 else ends[0, side] + 0.5
+        y1 = ends[1, side] - 0.5 if side == 0 else ends[1, side] + 0.5
+        slope = (y1 - y0) / dx
+        sgn = -pol if side == 0 else pol  # sign of f(y+1) - f(y)
+        for k in range(2):
+            for c in range(ca[k], cb[k]):
+                pred = y0 + slope * (c - cxs[0])
+                j0 = min(max(int(np.rint(pred - 0.5)) - length // 2, 0), h - length - 1)
+                cols[i] = c
+                grp[i] = 2 * side + k
+                ys[i] = _refine(image, c, j0, pred, hw, sgn, length, True, d)
+                i += 1
+    return cols, grp, ys
+
+
+@numba.njit(cache=True, nogil=True)
+def _line_fits(grp, xcol, cxs, ys, sd_fallback):
+    """Least-squares line ``y = icpt + slope u`` per group ``grp`` (m,) in 0..3 (closed form),
+    ``u = xcol - cxs[grp % 2]`` the columns ``xcol`` (m,) relative to their bar's centre
+    column ``cxs`` (2,) (px).
+
+    A group with fewer than 3 points or degenerate abscissae gets slope 0 and its mean as
+    intercept. Returns ``(icpt (4,), sigma (4,))``: the intercepts and their standard
+    errors, from the pooled residual sd of the fitted groups (``sd_fallback`` px when they
+    have fewer than 4 degrees of freedom).
+    """
+    cnt = np.zeros(4)
+    su = np.zeros(4)
+    sy = np.zeros(4)
+    suu = np.zeros(4)
+    suy = np.zeros(4)
+    u = xcol - cxs[grp % 2]
+    for i in range(grp.size):
+        g = grp[i]
+        cnt[g] += 1.0
+        su[g] += u[i]
+        sy[g] += ys[i]
+        suu[g] += u[i] * u[i]
+        suy[g] += u[i] * ys[i]
+    icpt = np.empty(4)
+    slope = np.zeros(4)
+    okf = np.zeros(4, np.bool_)
+    for g in range(4):
+        det = cnt[g] * suu[g] - su[g] * su[g]
+        okf[g] = cnt[g] >= 3 and det > 1e-9
+        if okf[g]:
+            slope[g] = (cnt[g] * suy[g] - su[g] * sy[g]) / det
+        icpt[g] = (sy[g] - slope[g] * su[g]) / max(cnt[g], 1.0)
+    rss = 0.0
+    dof = 0.0
+    for i in range(grp.size):
+        g = grp[i]
+        if okf[g]:
+            r = ys[i] - icpt[g] - slope[g] * u[i]
+            rss += r * r
+    for g in range(4):
+        if okf[g]:
+            dof += cnt[g] - 2
+    sd_h = math.sqrt(rss / dof) if dof >= 4 else sd_fallback
+    sig = np.empty(4)
+    for g in range(4):
+        sig[g] = sd_h / math.sqrt(max(cnt[g], 1.0))
+    return icpt, sig
 
 
 def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurements:
@@ -157,8 +355,8 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
 
     Vertical edges: on every stack row (but the first and last eighth) the
     differences ``f(x+1) - f(x)`` of an ``L = 11``-pixel window around each of the
-    four rough edges, fetched for all rows and edges with one indexing
-    operation; one centroid per row and edge, averaged over rows (eq: ``X = sum
+    four rough edges (:func:`_vertical_edges`, compiled); one centroid per row
+    and edge, averaged over rows (eq: ``X = sum
     x_i / n``, §4.6.2). Tops and bottoms: the same on every interior column of
     each bar, in a vertical window around the line through the rough bar ends;
     a straight line fitted per bar and side, evaluated at the bar's centre
@@ -168,81 +366,299 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
     nr = st.rows.size
     e = max(1, nr // 8) if nr >= 8 else 0
     rows = st.rows[e:nr - e] if nr - 2 * e >= 3 else st.rows
-    bounds = np.asarray(st.bounds, float)
-    runs = np.diff(bounds)  # bar, gap, bar widths
-    bar = float(runs.mean())
-    # symmetric half-windows: half the neighbouring run; the side margins are ~b/2 wide
-    hw_edge = np.array([min(runs[0], 0.5 * bar), min(runs[0], runs[1]), min(runs[1], runs[2]),
-                        min(runs[2], 0.5 * bar)]) / 2.0
-    hw_edge = np.clip(hw_edge, 1.0, 4.0)
-    pol = 1.0 if st.positive else -1.0
-    sgn = np.array([-pol, pol, -pol, pol], np.float32)  # sign of f(x+1)-f(x) across each edge
-    L = 11
-    start = bounds - 0.5  # (4,) rough edge: between the last pixel of one run and the first of the next
-    j0 = np.clip(np.rint(start - 0.5).astype(int) - L // 2, 0, w - L - 1)  # (4,) first difference position
-    cols = (j0[:, None] + np.arange(L + 1)).ravel()
-    vals = np.take(image, rows[:, None] * w + cols[None, :]).astype(np.float32).reshape(rows.size, 4, L + 1)
-    diff = (vals[..., 1:] - vals[..., :-1]) * sgn[None, :, None]
     n = rows.size
-    xs = _refine(diff, np.broadcast_to(j0, (n, 4)), np.broadcast_to(start, (n, 4)),
-                 np.broadcast_to(hw_edge, (n, 4)))  # (n, 4)
+    bounds = np.asarray(st.bounds, np.float64)
+    xs = _vertical_edges(image, rows, bounds, bool(st.positive), _L)  # (n, 4)
+    # saturated targets: a clipped erf model with blur and levels shared by the four edges
+    clipped, pc = _fit_bar_profile(image, rows, bounds, xs.mean(axis=0), bool(st.positive))
+    shift = pc[:4] - xs.mean(axis=0) if clipped else None
     xs = _undistort_vertical(camera, xs, rows)
-    edges = xs.mean(axis=0)
-    sd_v = xs.std(axis=0, ddof=1) if n > 1 else np.full(4, 0.5)
+    edges, sd_v, sd_fallback = _column_stats(xs)
+    if clipped:
+        edges = edges + shift
     # tops and bottoms: the top (bottom) line of both bars is one straight image line
     cxs = 0.5 * (edges[0::2] + edges[1::2])
     ends = st.ends
     if not ends:
         thr = 0.5 * (st.dark + st.bright)
         ends = [_rough_ends(image, st, int(np.clip(round(c), 0, w - 1)), thr) for c in cxs]
-    hbar = min(b - t + 1 for t, b in ends)
-    hw_v = float(np.clip(math.floor(hbar / 8.0), 1.0, 4.0))
-    # every interior column of each bar (1 px in from its edges), for the tops then the bottoms
-    bar_cols = []
-    for k in range(2):
-        a = int(math.ceil(edges[2 * k] + 1.0))
-        b = int(math.floor(edges[2 * k + 1] - 1.0))
-        if b < a:
-            a = b = int(round(cxs[k]))
-        bar_cols.append(np.arange(max(a, 0), min(b, w - 1) + 1))
-    n0, n1 = bar_cols[0].size, bar_cols[1].size
-    ccat = np.concatenate(bar_cols + bar_cols)
-    grp = np.repeat(np.arange(4), [n0, n1, n0, n1])  # 2 * side + bar; side 0 = top, 1 = bottom
-    side = grp >> 1
-    rough = np.array([[t - 0.5 for t, _ in ends], [b + 0.5 for _, b in ends]])  # (side, bar)
-    slope = (rough[:, 1] - rough[:, 0]) / max(cxs[1] - cxs[0], 1e-6)
-    pred = rough[side, 0] + slope[side] * (ccat - cxs[0])
-    vsg = np.where(side == 0, -pol, pol).astype(np.float32)  # sign of f(y+1)-f(y)
-    j0v = np.clip(np.rint(pred - 0.5).astype(int) - L // 2, 0, h - L - 1)
-    cv = np.take(image, (j0v[:, None] + np.arange(L + 1)) * w + ccat[:, None]).astype(np.float32)
-    dv = (cv[:, 1:] - cv[:, :-1]) * vsg[:, None]
-    ys = _refine(dv, j0v, pred, np.full(pred.shape, hw_v))
+    ccat, grp, ys = _horizontal_edges(image, edges, cxs, np.asarray(ends, np.int64), bool(st.positive), _L)
+    if clipped:
+        e_arr = np.asarray(ends, np.float64)
+        hbar = float(min(e_arr[0, 1] - e_arr[0, 0] + 1, e_arr[1, 1] - e_arr[1, 0] + 1))
+        ys = _refine_horizontal_clipped(image, ccat, grp, ys, bool(st.positive), hbar, 0.25 * hbar,
+                                        float(pc[4]), float(pc[5]), float(pc[6]))
     xcol = ccat.astype(float)
     if camera.has_distortion:
         und = camera.undistort_points(np.stack([xcol, ys], 1))
         xcol, ys = und[:, 0], und[:, 1]
     # straight line per (side, bar) group, evaluated at the bar centre column (closed form)
-    cxg = cxs[grp % 2]
-    u = xcol - cxg
-    cnt = np.bincount(grp, minlength=4).astype(float)
-    su = np.bincount(grp, u, 4)
-    sy = np.bincount(grp, ys, 4)
-    suu = np.bincount(grp, u * u, 4)
-    suy = np.bincount(grp, u * ys, 4)
-    det = cnt * suu - su * su
-    okf = (cnt >= 3) & (det > 1e-9)
-    safe = np.where(okf, det, 1.0)
-    slope_g = np.where(okf, (cnt * suy - su * sy) / safe, 0.0)
-    icpt = np.where(okf, (sy - slope_g * su) / np.maximum(cnt, 1.0), sy / np.maximum(cnt, 1.0))
-    res = ys - icpt[grp] - slope_g[grp] * u
-    rss = np.bincount(grp, res * res, 4)
-    dof = float(np.sum(np.where(okf, cnt - 2, 0)))
-    if dof >= 4:
-        sd_h = math.sqrt(float(np.sum(np.where(okf, rss, 0.0))) / dof)
-    else:
-        sd_h = float(np.sqrt(np.mean(sd_v ** 2)))
-    sig = sd_h / np.sqrt(np.maximum(cnt, 1.0))
+    icpt, sig = _line_fits(grp, xcol, cxs, ys, sd_fallback)
     return EdgeMeasurements(edges, sd_v / math.sqrt(max(n, 1)), cxs, icpt[:2].copy(), icpt[2:].copy(),
                             sig[:2].copy(), sig[2:].copy(), (int(rows[0]), int(rows[-1])),
                             {"vertical": np.stack([xs.ravel(), np.repeat(rows, 4).astype(float)], 1),
                              "horizontal": np.stack([xcol, ys], 1)})
+
+
+# --- saturated targets: clipped, blurred-step (erf) edge model ------------------------------
+
+_SQRT2 = math.sqrt(2.0)
+_INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
+#: a profile whose brightest (row-mean) pixel reaches this grey level is taken as clipped
+_CLIP = 254.5
+#: starts of the joint fit: unclipped bright level (dark + f * (255 - dark)) and edge shift
+#: towards the bright side (px)
+_B_STARTS = (1.5, 2.5, 4.0)
+_E_STARTS = (0.0, 0.3, 0.6)
+#: smallest fitted blur sd (px) for which the clipped-erf edges replace the centroids
+_SIGMA_MIN = 0.3
+#: narrowest mean run (px) of a target for the clipped-erf fit
+_BAR_MIN = 8.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _phi_cdf(z):
+    return 0.5 * (1.0 + math.erf(z / _SQRT2))
+
+
+@numba.njit(cache=True, nogil=True)
+def _gint(z):
+    """Integral of the normal cdf up to ``z``: ``z Phi(z) + phi(z)``."""
+    return z * _phi_cdf(z) + _INV_SQRT2PI * math.exp(-0.5 * z * z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _step(j, e, s):
+    """Fraction ``F`` of pixel ``j`` beyond an edge at ``e`` (box pixels ``[j - 0.5, j + 0.5]``)
+    after a sampled Gaussian blur of sd ``s`` (px) on the pixel grid (taps -3..3, normalised),
+    and its derivatives ``dF/de``, ``dF/ds``."""
+    sg = 0.0
+    sdg = 0.0
+    f = 0.0
+    fd = 0.0
+    de = 0.0
+    for k in range(-3, 4):
+        g = math.exp(-0.5 * k * k / (s * s))
+        dg = g * k * k / (s * s * s)
+        c = min(max(j - k + 0.5 - e, 0.0), 1.0)
+        sg += g
+        sdg += dg
+        f += g * c
+        fd += dg * c
+        if abs(j - k - e) < 0.5:
+            de -= g
+    return f / sg, de / sg, (fd * sg - f * sdg) / (sg * sg)
+
+
+@numba.njit(cache=True, nogil=True)
+def _bar_model(prof, j0, lo, hi, p, positive, J, res):
+    """Residuals ``res`` (and Jacobian ``J``) of the clipped four-edge model over the pixels
+    ``lo..hi-1`` of the profile ``prof`` whose first pixel is at ``j0``.
+
+    ``p`` = (e0, e1, e2, e3, sigma, bright, dark): the brightness is
+    ``dark + (bright - dark) * b(x)`` with ``b`` the blurred box-pixel fraction of bright
+    (gap and margins of a positive target, the bars of a negative one), clipped at 255.
+    A pixel observed clipped is not penalised while the model is clipped too.
+    Returns the residual sum of squares.
+    """
+    rss = 0.0
+    s = p[4]
+    for i in range(lo, hi):
+        j = j0 + i
+        acc = 0.0
+        for c in range(7):
+            J[i - lo, c] = 0.0
+        dsum = 0.0
+        for k in range(4):
+            f, de, ds = _step(j, p[k], s)
+            sg = 1.0 if k % 2 == 0 else -1.0  # F(e0) - F(e1) + F(e2) - F(e3): fraction inside the bars
+            acc += sg * f
+            J[i - lo, k] = sg * de
+            dsum += sg * ds
+        if positive:
+            b = 1.0 - acc
+            for k in range(4):
+                J[i - lo, k] = -J[i - lo, k]
+            dsum = -dsum
+        else:
+            b = acc
+        amp = p[5] - p[6]
+        m = p[6] + amp * b
+        for k in range(4):
+            J[i - lo, k] *= amp
+        J[i - lo, 4] = amp * dsum
+        J[i - lo, 5] = b
+        J[i - lo, 6] = 1.0 - b
+        if m >= 255.0:
+            if prof[i] >= _CLIP:
+                r = 0.0
+                for c in range(7):
+                    J[i - lo, c] = 0.0
+            else:
+                r = 255.0 - prof[i]
+                for c in range(7):
+                    J[i - lo, c] = 0.0
+        else:
+            r = m - prof[i]
+        res[i - lo] = r
+        rss += r * r
+    return rss
+
+
+@numba.njit(cache=True, nogil=True)
+def _fit_bar_profile(image, rows, bounds, e_init, positive):
+    """Joint clipped-erf fit of the row-mean profile across the four vertical edges.
+
+    Returns ``(ok, p)`` with ``p`` = (e0..e3, sigma, bright, dark); ``ok`` is False when
+    the profile is not clipped (the caller keeps the centroid edges) or the fit failed.
+    """
+    w = image.shape[1]
+    r0, r1, r2 = bounds[1] - bounds[0], bounds[2] - bounds[1], bounds[3] - bounds[2]
+    bar = (r0 + r1 + r2) / 3.0
+    p = np.empty(7)
+    if bar < _BAR_MIN:
+        return False, p
+    out = max(1.0, min(0.25 * bar, 3.0))  # half the (half-bar) margin, at most 3 px
+    a = int(math.floor(e_init[0] - out + 0.5))
+    bnd = int(math.ceil(e_init[3] + out - 0.5))
+    a = max(a, 0)
+    bnd = min(bnd, w - 1)
+    n = bnd - a + 1
+    if n < 12:
+        return False, p
+    prof = np.zeros(n)
+    for r in rows:
+        for i in range(n):
+            prof[i] += image[r, a + i]
+    pmax = 0.0
+    pmin = 1e9
+    for i in range(n):
+        prof[i] /= rows.size
+        pmax = max(pmax, prof[i])
+        pmin = min(pmin, prof[i])
+    if pmax < _CLIP:
+        return False, p
+    best = np.empty(7)
+    best_cost = np.inf
+    for start in range(len(_B_STARTS) * len(_E_STARTS)):
+        # edges start from the centroids moved towards their bright side (clipping biases
+        # the centroids towards the dark side)
+        de = _E_STARTS[start // len(_B_STARTS)]
+        for k in range(4):
+            out_k = 1.0 if (k % 2 == 0) != positive else -1.0  # bright side of edge k: +x when 1
+            p[k] = e_init[k] + out_k * de
+        p[4] = 0.5
+        p[6] = pmin
+        p[5] = pmin + _B_STARTS[start % len(_B_STARTS)] * (255.0 - pmin)
+        cost = _lm_bar(prof, a, n, p, positive)
+        if cost < best_cost:
+            best_cost = cost
+            best[:] = p
+    p[:] = best
+    # sharp edges: the clipped pixels hide where in them each edge lies, and the model
+    # has nothing to add to the centroids (whose common shift the pose fit takes out)
+    if p[4] < _SIGMA_MIN:
+        return False, p
+    for k in range(4):
+        if abs(p[k] - e_init[k]) > 1.5:
+            return False, p
+    return True, p
+
+
+@numba.njit(cache=True, nogil=True)
+def _lm_bar(prof, a, n, p, positive):
+    """Levenberg-Marquardt of :func:`_bar_model` from ``p`` (updated in place); returns the cost."""
+    J = np.empty((n, 7))
+    res = np.empty(n)
+    lam = 1e-3
+    cost = _bar_model(prof, a, 0, n, p, positive, J, res)
+    q = np.empty(7)
+    for it in range(30):
+        A = J.T @ J
+        g = J.T @ res
+        for c in range(7):
+            A[c, c] += lam * A[c, c] + 1e-9
+        step = np.linalg.solve(A, g)
+        for c in range(7):
+            q[c] = p[c] - step[c]
+        q[4] = min(max(q[4], 0.05), 3.0)
+        q[5] = max(q[5], 255.0)
+        Jq = np.empty((n, 7))
+        rq = np.empty(n)
+        cq = _bar_model(prof, a, 0, n, q, positive, Jq, rq)
+        if cq < cost:
+            conv = cost - cq < 1e-6 * (cost + 1e-9)
+            p[:] = q
+            J[:, :] = Jq
+            res[:] = rq
+            cost = cq
+            lam = max(lam * 0.3, 1e-7)
+            if conv:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e6:
+                break
+    return cost
+
+
+@numba.njit(cache=True, nogil=True)
+def _refine_clipped(image, fixed, start, hw_dark, hw_bright, sgn, vertical, s, bright, dark):
+    """Position of one edge by a clipped erf fit with shared blur ``s`` and levels
+    (Gauss-Newton on the position only), starting from ``start``; ``sgn`` the sign of
+    ``f(j+1) - f(j)`` across the edge (dark to bright when positive). The window reaches
+    ``hw_dark`` px into the dark side and ``hw_bright`` px into the bright side."""
+    n_img = image.shape[0] if vertical else image.shape[1]
+    if sgn > 0:
+        lo = int(math.floor(start - hw_dark + 0.5))
+        hi = int(math.ceil(start + hw_bright - 0.5))
+    else:
+        lo = int(math.floor(start - hw_bright + 0.5))
+        hi = int(math.ceil(start + hw_dark - 0.5))
+    lo = max(lo, 0)
+    hi = min(hi, n_img - 1)
+    e = start
+    amp = bright - dark
+    for it in range(6):
+        a11 = 0.0
+        g1 = 0.0
+        for j in range(lo, hi + 1):
+            v = np.float64(image[j, fixed]) if vertical else np.float64(image[fixed, j])
+            f, de, ds = _step(j, e, s)
+            b = f if sgn > 0 else 1.0 - f
+            dm = amp * (de if sgn > 0 else -de)
+            m = dark + amp * b
+            if m >= 255.0:
+                if v >= _CLIP:
+                    continue
+                continue
+            r = m - v
+            a11 += dm * dm
+            g1 += dm * r
+        if a11 <= 1e-9:
+            break
+        stp = g1 / a11
+        stp = min(max(stp, -0.5), 0.5)
+        e -= stp
+        if abs(stp) < 1e-4:
+            break
+    if abs(e - start) > 1.0:
+        return start
+    return e
+
+
+@numba.njit(cache=True, nogil=True)
+def _refine_horizontal_clipped(image, cols, grp, ys, positive, hbar, margin, s, bright, dark):
+    """:func:`_refine_clipped` down each column ``cols`` around the centroid estimate ``ys``
+    (group ``grp`` = 2 * side + bar); the window's dark side stops at half the margin."""
+    out = np.empty(ys.size)
+    pol = 1.0 if positive else -1.0
+    hw_b = min(max(hbar / 8.0, 1.0), 4.0) + 1.0
+    hw_d = hw_b
+    if not positive:
+        hw_d = min(hw_b, max(1.0, 0.5 * margin))
+    for i in range(ys.size):
+        side = grp[i] // 2
+        sgn = -pol if side == 0 else pol
+        out[i] = _refine_clipped(image, cols[i], ys[i], hw_d, hw_b, sgn, True, s, bright, dark)
+    return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from localizer.camera import Camera
@@ -121,6 +122,7 @@ def thesis_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec) -> Pose
 
 
 # ---------------------------------------------------------------------- exact
+@numba.njit(cache=True, nogil=True)
 def alpha_a14(r: float, width: float, beta: float, beta1: float, beta2: float) -> tuple[float, float]:
     """Appendix A's analytic orientation (eqs A.13-A.14), both roots.
 
@@ -134,85 +136,92 @@ def alpha_a14(r: float, width: float, beta: float, beta1: float, beta2: float) -
     return beta + phi, beta - phi
 
 
-def _edge_signs(positive: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Direction (+1 = towards +x / +y) of each edge's dark side: vertical edges (4,), then
-    (top, bottom) of the bars."""
+@numba.njit(cache=True, nogil=True)
+def _initial(ex, top, bot, bar_cx, fx, fy, cx, cy, b, H, positive):
+    """Starting point of the exact fit from the edges ``ex`` (4,), bar tops ``top``, bottoms
+    ``bot`` and centre columns ``bar_cx`` (2,) (px); ``b``, ``H`` bar width and height (m).
+
+    The common dark-side shift ``delta`` (px) from the gap against the mean bar; the
+    orientation from Appendix A (eq A.14, :func:`alpha_a14`) -- the root nearer the
+    bar-height estimate; the bearing from a 1-D projective fit of all four edges; ``X, Z``
+    by least squares given alpha; ``Y`` from the bar tops and bottoms. Returns
+    ``(p0 (5,) = (X, Z, alpha, Y, delta), (alpha1, alpha2))``.
+    """
     s = 1.0 if positive else -1.0
-    return np.array([1.0, -1.0, 1.0, -1.0]) * s, np.array([1.0, -1.0]) * s
-
-
-def _initial(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool) -> np.ndarray:
-    b, H = target.bar_width, target.bar_height
-    sv, sh = _edge_signs(positive)
-    ex = np.asarray(m.edges_x, float)
-    runs = np.diff(ex)
-    delta = (1.0 if positive else -1.0) * (runs[1] - 0.5 * (runs[0] + runs[2])) / 4.0
-    exc = ex - delta * sv
-    top = np.asarray(m.top_y) - delta * sh[0]
-    bot = np.asarray(m.bottom_y) - delta * sh[1]
+    delta = s * ((ex[2] - ex[1]) - 0.5 * ((ex[1] - ex[0]) + (ex[3] - ex[2]))) / 4.0
+    u = np.array([-1.5, -0.5, 0.5, 1.5]) * b
+    tx = np.empty(4)
+    for k in range(4):
+        sv = s if k % 2 == 0 else -s
+        tx[k] = (ex[k] - delta * sv - cx) / fx
+    topc = top - delta * s
+    botc = bot + delta * s
     # bar-height ranges: a 3-D point on each bar's centre ray
-    t = (np.asarray(m.bar_cx) - camera.cx) / camera.fx
-    zc = H * camera.fy / (bot - top)
-    px, pz = t * zc, zc
+    t = (bar_cx - cx) / fx
+    zc = H * fy / (botc - topc)
+    px = t * zc
+    pz = zc
     alpha_h = math.atan2(-(pz[1] - pz[0]), px[1] - px[0])
     # Appendix A: bearings of the outer edges and of the centre (1-D projective fit of all 4 edges)
-    tx = (exc - camera.cx) / camera.fx
-    u = np.array([-1.5, -0.5, 0.5, 1.5]) * b
-    A = np.stack([np.ones(4), -tx, u, u * tx], axis=1)
+    A = np.empty((4, 4))
+    for k in range(4):
+        A[k, 0] = 1.0
+        A[k, 1] = -tx[k]
+        A[k, 2] = u[k]
+        A[k, 3] = u[k] * tx[k]
     _, _, vt = np.linalg.svd(A)
-    v = vt[-1]
-    v = v / math.hypot(v[2], v[3])
+    v = vt[-1] / math.hypot(vt[-1, 2], vt[-1, 3])
     if v[1] < 0:
         v = -v
     beta_c = math.atan2(v[0], v[1])
     r = 0.5 * (math.hypot(px[0], pz[0]) + math.hypot(px[1], pz[1]))
-    cands = alpha_a14(r, target.active_width, beta_c, math.atan(tx[0]), math.atan(tx[3]))
-    alpha0 = min(cands, key=lambda a: abs(a - alpha_h))
-    c, s = math.cos(alpha0), math.sin(alpha0)
-    # X, Z given alpha: X - t Z = -u (c + t s), least squares over the four edges
-    rhs = -u * (c + tx * s)
-    # normal equations of [1, -t] (X, Z) = rhs, closed form
-    n4, st_, stt = 4.0, float(tx.sum()), float(tx @ tx)
-    sr, str_ = float(rhs.sum()), float(tx @ rhs)
-    det = n4 * stt - st_ * st_
-    X, Z = ((stt * sr - st_ * str_) / det, (st_ * sr - n4 * str_) / det) if abs(det) > 1e-15 else (0.0, -1.0)
+    a1, a2 = alpha_a14(r, 3.0 * b, beta_c, math.atan(tx[0]), math.atan(tx[3]))
+    alpha0 = a1 if abs(a1 - alpha_h) <= abs(a2 - alpha_h) else a2
+    c, sn = math.cos(alpha0), math.sin(alpha0)
+    # X, Z given alpha: X - t Z = -u (c + t s), least squares over the four edges (normal equations)
+    rhs = -u * (c + tx * sn)
+    st_, stt = tx.sum(), (tx * tx).sum()
+    sr, str_ = rhs.sum(), (tx * rhs).sum()
+    det = 4.0 * stt - st_ * st_
+    X, Z = 0.0, -1.0
+    if abs(det) > 1e-15:
+        X, Z = (stt * sr - st_ * str_) / det, (st_ * sr - 4.0 * str_) / det
     if not Z > 0:
-        X, Z = float(np.mean(px)), float(np.mean(pz))
-    uu = (t * Z - X) / (c + t * s)
-    zc2 = Z - uu * s
-    Y = float(np.mean(np.concatenate([(top - camera.cy) * zc2 / camera.fy + 0.5 * H,
-                                      (bot - camera.cy) * zc2 / camera.fy - 0.5 * H])))
-    return np.array([X, Z, alpha0, Y, delta]), cands
+        X, Z = px.mean(), pz.mean()
+    uu = (t * Z - X) / (c + t * sn)
+    zc2 = Z - uu * sn
+    Y = 0.25 * ((((topc - cy) * zc2 / fy + 0.5 * H) + ((botc - cy) * zc2 / fy - 0.5 * H)).sum())
+    return np.array([X, Z, alpha0, Y, delta]), (a1, a2)
 
 
-def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh: float,
-           sv: tuple, sh: tuple):
+@numba.njit(cache=True, nogil=True)
+def _model(p, fx, fy, cx, cy, u, t, hh, sv, sh, pred, J):
     """Predicted measurements and their Jacobian for parameters ``p = (X, Z, alpha, Y, delta)``.
 
-    Pure-Python scalars (the problem is 8 x 5; numpy's per-call overhead would
-    dominate). Measurements, in order: the four vertical edges
-    ``x_k = cx + fx (X + u_k cos a) / (Z - u_k sin a) + delta sv_k`` (``u_k`` the
+    Measurements, in order: the four vertical edges
+    ``x_k = cx + fx (X + u_k cos a) / (Z - u_k sin a) + delta sv_k`` (``u_k`` (4,) the
     edges' target abscissae, m), then the tops and bottoms of bars 1 and 2 at the
-    bar centre columns, whose rays ``x/z = t_j`` meet the target plane at range
+    bar centre columns, whose rays ``x/z = t_j`` (``t`` (2,)) meet the target plane at range
     ``z_j = (Z cos a + X sin a) / (cos a + t_j sin a)``:
-    ``y = cy + fy (Y -+ H/2) / z_j + delta sh``. Returns ``(pred (8,), J (8, 5))``
-    as lists (columns: X, Z, alpha, Y, delta).
+    ``y = cy + fy (Y -+ H/2) / z_j + delta sh``. Fills ``pred`` (8,) and ``J`` (8, 5)
+    (columns: X, Z, alpha, Y, delta) in place.
     """
-    X, Z, a, Y, dl = p
+    X, Z, a, Y, dl = p[0], p[1], p[2], p[3], p[4]
     c, s = math.cos(a), math.sin(a)
-    pred = []
-    J = []
     for k in range(4):
         uk = u[k]
         N = X + uk * c
         iM = 1.0 / (Z - uk * s)
         q = N * iM
-        pred.append(cx + fx * q + dl * sv[k])
-        J.append((fx * iM, -fx * q * iM, fx * uk * (N * c - s / iM) * iM * iM, 0.0, sv[k]))
+        pred[k] = cx + fx * q + dl * sv[k]
+        J[k, 0] = fx * iM
+        J[k, 1] = -fx * q * iM
+        J[k, 2] = fx * uk * (N * c - s / iM) * iM * iM
+        J[k, 3] = 0.0
+        J[k, 4] = sv[k]
     D = Z * c + X * s
     iD = 1.0 / D
     dD = X * c - Z * s
-    rows_t, rows_b = [], []
     for j in range(2):
         tj = t[j]
         g = c + tj * s
@@ -220,61 +229,149 @@ def _model(p, fx: float, fy: float, cx: float, cy: float, u: tuple, t: tuple, hh
         dq_dx = -g * s * iD * iD
         dq_dz = -g * c * iD * iD
         dq_da = ((tj * c - s) * D - g * dD) * iD * iD
-        for yv, dst, shv in ((Y - hh, rows_t, sh[0]), (Y + hh, rows_b, sh[1])):
-            dst.append((cy + fy * yv * q + dl * shv,
-                        (fy * yv * dq_dx, fy * yv * dq_dz, fy * yv * dq_da, fy * q, shv)))
-    for pr, jr in rows_t + rows_b:
-        pred.append(pr)
-        J.append(jr)
-    return pred, J
+        for side in range(2):  # row 4 + j: top of bar j, row 6 + j: its bottom
+            yv = Y - hh if side == 0 else Y + hh
+            r = 4 + 2 * side + j
+            pred[r] = cy + fy * yv * q + dl * sh[side]
+            J[r, 0] = fy * yv * dq_dx
+            J[r, 1] = fy * yv * dq_dz
+            J[r, 2] = fy * yv * dq_da
+            J[r, 3] = fy * q
+            J[r, 4] = sh[side]
 
 
-def _gauss_newton(starts, meas: np.ndarray, wv: np.ndarray, args, iterations: int):
-    """Weighted Gauss-Newton from each start in ``starts`` (list of (5,)), all advanced together
-    (one batched solve per iteration). Returns a list of ``(p (5,), chi2, JtWJ (5, 5))``; a start
-    that fails (singular system, behind the camera) is dropped.
+@numba.njit(cache=True, nogil=True)
+def _gauss_newton(p0, meas, wv, fx, fy, cx, cy, u, t, hh, sv, sh, iterations):
+    """Weighted Gauss-Newton from ``p0`` (5,) on ``meas`` (8,) with weights ``wv`` (8,)
+    (1 / sigma, px^-1); the model is :func:`_model` with the camera and target constants.
 
     A fit stops when the range changes by less than 1e-5 of itself and alpha by less
     than 1e-5 rad (far below the noise), after one more pass for the final Jacobian.
+    Returns ``(p (5,), chi2, JtWJ (5, 5), status)``: status 1 converged or out of
+    iterations, 0 singular normal equations, -1 left the half-space in front of the camera.
     """
-    ps = [[float(v) for v in p] for p in starts]
-    live = list(range(len(ps)))
-    last = [None] * len(ps)
-    left = [iterations + 1] * len(ps)
-    while live:
-        preds, Js = [], []
-        for i in live:
-            pr, J = _model(ps[i], *args)
-            preds.append(pr)
-            Js.append(J)
-        r = (meas[None, :] - np.array(preds)) * wv[None, :]  # (n, 8)
-        Jw = np.array(Js) * wv[None, :, None]  # (n, 8, 5)
-        Jt = Jw.transpose(0, 2, 1)
-        A = Jt @ Jw  # (n, 5, 5)
-        for k, i in enumerate(live):
-            last[i] = (float(r[k] @ r[k]), A[k])
-            left[i] -= 1
-        step = [k for k, i in enumerate(live) if left[i] > 0]
-        if not step:
+    p = p0.copy()
+    pred = np.empty(8)
+    J = np.empty((8, 5))
+    r = np.empty(8)
+    A = np.empty((5, 5))
+    b = np.empty(5)
+    M = np.empty((5, 6))
+    dp = np.empty(5)
+    chi2 = 0.0
+    left = iterations + 1
+    while True:
+        _model(p, fx, fy, cx, cy, u, t, hh, sv, sh, pred, J)
+        chi2 = 0.0
+        for i in range(8):
+            r[i] = (meas[i] - pred[i]) * wv[i]
+            chi2 += r[i] * r[i]
+            for k in range(5):
+                J[i, k] *= wv[i]
+        for k in range(5):
+            acc = 0.0
+            for i in range(8):
+                acc += J[i, k] * r[i]
+            b[k] = acc
+            for m in range(5):
+                acc = 0.0
+                for i in range(8):
+                    acc += J[i, k] * J[i, m]
+                A[k, m] = acc
+        left -= 1
+        if left <= 0:
             break
-        try:
-            dp = np.linalg.solve(A[step], (Jt[step] @ r[step][:, :, None]))[:, :, 0]
-        except np.linalg.LinAlgError:
-            return []
-        nxt = []
-        for k, d in zip(step, dp.tolist()):
-            i = live[k]
-            p = [ps[i][j] + d[j] for j in range(5)]
-            p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
-            if not p[1] > 0:
-                left[i] = -1  # left the half-space in front of the camera
-                continue
-            ps[i] = p
-            if abs(d[1]) < 1e-5 * p[1] and abs(d[2]) < 1e-5:
-                left[i] = min(left[i], 1)  # one more pass for the final Jacobian
-            nxt.append(i)
-        live = nxt
-    return [(np.array(ps[i]), last[i][0], last[i][1]) for i in range(len(ps)) if left[i] >= 0 and last[i]]
+        # dp = A^-1 b, Gaussian elimination with partial pivoting on the 5 x 6 augmented matrix
+        for k in range(5):
+            for m in range(5):
+                M[k, m] = A[k, m]
+            M[k, 5] = b[k]
+        for k in range(5):
+            piv = k
+            for i in range(k + 1, 5):
+                if abs(M[i, k]) > abs(M[piv, k]):
+                    piv = i
+            if M[piv, k] == 0.0:
+                return p, chi2, A, 0
+            if piv != k:
+                for m in range(6):
+                    M[k, m], M[piv, m] = M[piv, m], M[k, m]
+            for i in range(k + 1, 5):
+                f = M[i, k] / M[k, k]
+                for m in range(k, 6):
+                    M[i, m] -= f * M[k, m]
+        for k in range(4, -1, -1):
+            acc = M[k, 5]
+            for m in range(k + 1, 5):
+                acc -= M[k, m] * dp[m]
+            dp[k] = acc / M[k, k]
+        for k in range(5):
+            p[k] += dp[k]
+        p[2] = (p[2] + math.pi) % (2 * math.pi) - math.pi
+        if not p[1] > 0:
+            return p, chi2, A, -1
+        if abs(dp[1]) < 1e-5 * p[1] and abs(dp[2]) < 1e-5:
+            left = min(left, 1)  # one more pass for the final Jacobian
+    return p, chi2, A, 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _fit(meas, sig, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive, iterations):
+    """The numeric core of :func:`exact_pose`: measurements ``meas`` (8,) (edges, tops,
+    bottoms, px) with standard errors ``sig`` (8,), bar centre columns ``bar_cx`` (2,).
+
+    Fits from the start of :func:`_initial` and from the other root of A.14 (unless
+    within 0.5 deg), keeps the better minimum and widens its covariance by the
+    separation of the other one as :func:`exact_pose` describes. Returns ``(status,
+    p (5,), chi2, cov (5, 5), (alpha1, alpha2), n_solutions)``; status 1 = fitted,
+    0 = singular normal equations, -1 = no fit stayed in front of the camera.
+    """
+    wv = 1.0 / np.sqrt(sig * sig + sigma_floor * sigma_floor)
+    top = meas[4:6].copy()
+    bot = meas[6:8].copy()
+    p0, cands = _initial(meas[:4].copy(), top, bot, bar_cx, fx, fy, cx, cy, b, H, positive)
+    s = 1.0 if positive else -1.0
+    sv = np.array([1.0, -1.0, 1.0, -1.0]) * s  # direction (+1 = +x / +y) of each edge's dark side
+    sh = np.array([1.0, -1.0]) * s  # (top, bottom)
+    t = (bar_cx - cx) / fx
+    u = np.array([-1.5, -0.5, 0.5, 1.5]) * b
+    # both roots of A.14 (§4.2.2: the mirror solution), fitted one after the other
+    other = cands[1] if abs(cands[0] - p0[2]) < abs(cands[1] - p0[2]) else cands[0]
+    n_starts = 2 if abs(other - p0[2]) > math.radians(0.5) else 1
+    best_p = p0
+    best_chi2 = np.inf
+    best_A = np.eye(5)
+    q = p0
+    chi2q = np.inf
+    nsols = 0
+    for k in range(n_starts):
+        st = p0.copy()
+        if k == 1:
+            st[2] = other
+        p, chi2, A, status = _gauss_newton(st, meas, wv, fx, fy, cx, cy, u, t, 0.5 * H, sv, sh, iterations)
+        if status == 0:
+            return 0, p0, 0.0, np.eye(5), cands, 0
+        if status < 0:
+            continue
+        nsols += 1
+        if chi2 < best_chi2:
+            q, chi2q = best_p, best_chi2
+            best_p, best_chi2, best_A = p, chi2, A.copy()
+        else:
+            q, chi2q = p, chi2
+    if nsols == 0:
+        return -1, p0, 0.0, np.eye(5), cands, 0
+    scale = max(1.0, best_chi2 / (meas.size - 5))
+    cov = np.linalg.inv(best_A) * scale
+    if nsols > 1:
+        dchi = (chi2q - best_chi2) / scale
+        if dchi < 16.0 and abs(q[2] - best_p[2]) > 1e-6:
+            w = math.exp(-0.5 * dchi)
+            w = max(w / (1.0 + w), 0.25 * (1.0 - dchi / 16.0))
+            for i in range(3):
+                for j in range(3):
+                    cov[i, j] += w * (q[i] - best_p[i]) * (q[j] - best_p[j])
+    return 1, best_p, best_chi2, cov, cands, nsols
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -301,45 +398,20 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     scaled up by the reduced chi-square when it exceeds one, mapped to
     (d, beta, alpha).
     """
-    meas = np.concatenate([m.edges_x, m.top_y, m.bottom_y]).astype(float)
-    sig2 = np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]) ** 2 + sigma_floor ** 2
-    wv = 1.0 / np.sqrt(sig2)
-    p0, cands = _initial(m, camera, target, positive)
-    sv, sh = _edge_signs(positive)
-    t = tuple(float(v) for v in (np.asarray(m.bar_cx, float) - camera.cx) / camera.fx)
-    args = (camera.fx, camera.fy, camera.cx, camera.cy, tuple(float(v) for v in target_edges_u(target)), t,
-            0.5 * target.bar_height, tuple(float(v) for v in sv), tuple(float(v) for v in sh))
-    dof = meas.size - p0.size
-    # both roots of A.14 (§4.2.2: the mirror solution), fitted side by side
-    other = cands[1] if abs(cands[0] - p0[2]) < abs(cands[1] - p0[2]) else cands[0]
-    starts = [p0]
-    if abs(other - p0[2]) > math.radians(0.5):
-        p1 = p0.copy()
-        p1[2] = other
-        starts.append(p1)
-    sols = _gauss_newton(starts, meas, wv, args, iterations)
-    if not sols:
+    meas = np.concatenate([m.edges_x, m.top_y, m.bottom_y]).astype(np.float64)
+    sig = np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]).astype(np.float64)
+    status, p, chi2, cov_p, cands, nsols = _fit(
+        meas, sig, np.asarray(m.bar_cx, np.float64), float(sigma_floor), float(camera.fx), float(camera.fy),
+        float(camera.cx), float(camera.cy), float(target.bar_width), float(target.bar_height), bool(positive),
+        int(iterations))
+    if status == 0:
+        raise np.linalg.LinAlgError("singular normal equations in the pose fit")
+    if status < 0:
         raise np.linalg.LinAlgError("no pose fit converged")
-    sols.sort(key=lambda s: s[1])
-    p, chi2, JtJ = sols[0]
-    scale = max(1.0, chi2 / dof)
-    cov_p = np.linalg.inv(JtJ) * scale
-    if len(sols) > 1:
-        q, chi2q, _ = sols[1]
-        dchi = (chi2q - chi2) / scale
-        sep = q[:3] - p[:3]
-        if dchi < 16.0 and abs(sep[2]) > 1e-6:
-            w = math.exp(-0.5 * dchi)
-            w = max(w / (1.0 + w), 0.25 * (1.0 - dchi / 16.0))
-            cov_p[:3, :3] += w * np.outer(sep, sep)
+    dof = meas.size - p.size
     X, Z, alpha = float(p[0]), float(p[1]), float(p[2])
     d = math.hypot(X, Z)
     T = np.array([[X / d, Z / d, 0.0], [Z / d ** 2, -X / d ** 2, 0.0], [0.0, 0.0, 1.0]])
     cov = T @ cov_p[:3, :3] @ T.T
-    return PoseEstimate(d, math.atan2(X, Z), alpha, Z, X, float(p[3]), cov, tuple(cands), len(sols) > 1,
+    return PoseEstimate(d, math.atan2(X, Z), alpha, Z, X, float(p[3]), cov, tuple(cands), nsols > 1,
                         float(p[4]), math.sqrt(chi2 / dof))
-
-
-def target_edges_u(target: TargetSpec) -> np.ndarray:
-    """Target abscissae ``u`` (m) of the four vertical bar edges: ``-1.5b, -0.5b, 0.5b, 1.5b``."""
-    return np.array([-1.5, -0.5, 0.5, 1.5]) * target.bar_width

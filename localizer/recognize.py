@@ -5,28 +5,31 @@ matching bar-gap-bar triple. Work per frame, in order of cost:
 
 1. coarse scan: every ``N``-th line thresholded, run-length coded and searched
    for triples in one batch (:mod:`localizer.scan`);
-2. every triple's grey levels on its own line, all triples at once: contrast
-   between the runs, light margins, no grating (the cheap part of §4.5.2);
-3. the minimum height and aspect tests in advance (:func:`_tall_enough`): 11
-   pixels across each surviving hit on every other line around it, all hits at once;
-4. per remaining hit, the fine search of the thesis -- which walks up and down
-   line by line from the hit until no line matches -- as one small region of
-   interest thresholded at the hit's own midway level and run-length coded at
-   once; on each line the runs around the hit's gap are looked up
-   (:func:`_fine_scan`); then the full verification (:func:`verify_stack`).
+2. every triple's grey levels on its own line: contrast between the runs,
+   light margins, no grating (the cheap part of §4.5.2), then the minimum
+   height and aspect tests in advance: 11 pixels across each surviving hit on
+   17 sampled lines around it (:func:`_coarse_seeds`);
+3. per remaining hit, the fine search of the thesis -- which walks up and down
+   line by line from the hit until no line matches -- over one small region of
+   interest thresholded at the hit's own midway level; on each line the runs
+   around the hit's gap are found by walking out from it (:func:`_fine_scan`);
+   then the full verification (:func:`verify_stack`).
 
 Hits inside a stack already found are not searched again (the thesis's grouping).
+The pixel loops are compiled with numba (``_``-prefixed kernels, cached in
+``__pycache__`` after the first call in a fresh environment).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import near_equal, scan_lines, triple_levels
+from localizer.scan import _near_equal, scan_lines, triple_levels
 from localizer.target import TargetSpec
 
 
@@ -86,33 +89,17 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     # grey levels of every triple on its own line (§4.5.2 (2)): contrast between the runs,
     # light margins, no bar-shaded run beyond a margin (five equal runs: a grating)
     lv = triple_levels(lines, tri)
-    pos = tri.positive
-    sgn = np.where(pos, 1.0, -1.0)[:, None]
-    outer = 0.5 * (lv[:, 1] + lv[:, 3])
-    dark = np.where(pos, outer, lv[:, 2])
-    bright = np.where(pos, lv[:, 2], outer)
-    span = np.maximum(bright - dark, 1.0)[:, None]
-    f = (lv - dark[:, None]) / span  # 0 = dark level, 1 = bright level
-    f = np.where(pos[:, None], f, 1.0 - f)  # 0 = bar shade, 1 = gap shade, either polarity
-    c = np.minimum(lv[:, 2] - lv[:, 1], lv[:, 2] - lv[:, 3]) * sgn[:, 0]
-    need = np.minimum(p.min_contrast, p.min_contrast_ratio * bright)
-    with np.errstate(invalid="ignore"):
-        ok = (c >= need) & (c > 0) & (np.minimum(f[:, 0], f[:, 4]) >= 0.35)
-        if p.reject_periodic:
-            ok &= ~(f[:, 5] < 0.3) & ~(f[:, 6] < 0.3)
-    seeds = np.flatnonzero(ok)
-    if seeds.size:
-        lo_ratio = target.active_height / target.active_width * camera.fy / camera.fx * (1.0 - p.aspect_tolerance)
-        tall, top, bottom = _tall_enough(image, tri, seeds, 0.5 * (dark + bright), bright - dark, p, lo_ratio)
-        seeds, top, bottom = seeds[tall], top[tall], bottom[tall]
+    lo_ratio = target.active_height / target.active_width * camera.fy / camera.fx * (1.0 - p.aspect_tolerance)
+    seeds, top, bottom, thr_all, key = _coarse_seeds(
+        image, lv, tri.y, tri.x, tri.positive, float(p.min_contrast), float(p.min_contrast_ratio),
+        bool(p.reject_periodic), int(p.min_rows), int(p.max_row_gap), float(lo_ratio))
     stats.seeds += int(seeds.size)
     if seeds.size == 0:
         return [], []
-    thr_all = 0.5 * (dark + bright)
+    pos = tri.positive
     # best-shaped triples first (the runs most nearly equal): where a margin, a bar and the
     # gap pose as a triple of the other polarity, the true triple is then searched first
-    l3 = np.diff(tri.x[seeds], axis=1)
-    order = np.argsort((l3.max(axis=1) - l3.min(axis=1)) / l3.max(axis=1), kind="stable")
+    order = np.argsort(key, kind="stable")
     seeds, top, bottom = seeds[order], top[order].tolist(), bottom[order].tolist()
     stacks: list[Stack] = []
     verified: list[Stack] = []
@@ -145,188 +132,433 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     return stacks, verified
 
 
-def _tall_enough(image: np.ndarray, tri, seeds: np.ndarray, thr: np.ndarray, span: np.ndarray,
-                 p: DetectorParams, lo_ratio: float):
-    """Minimum-height and aspect tests (§4.5.2 (1)) in advance, for all seeds at once.
+@numba.njit(cache=True, nogil=True)
+def _coarse_seeds(image, lv, ty, tx, tpos, min_contrast, min_contrast_ratio, reject_periodic, min_rows,
+                  max_row_gap, lo_ratio):
+    """The cheap part of the verification (§4.5.2) for every coarse triple, in one pass.
 
-    The stack through the seed's row ``y`` must be at least ``M`` rows tall: ``M``
-    is ``min_rows`` or, if more, the least height the aspect test allows for the
-    seed's width (``lo_ratio`` times it). On 8 rows either side of ``y``, spaced ``M / 8``
-    (at least ``min_rows // 6``) apart, 11 pixels across
-    the seed -- the middle of each margin, and the first, middle and last
-    non-boundary pixel of each run -- thresholded at the seed's midway level
-    ``thr`` must have the seed's shades (the margin pixels may be blurred grey, within a
-    quarter of the contrast ``span`` of ``thr``, but not clearly of the bars' shade); the run of
-    good sampled rows through ``y`` must be able to span ``M`` rows. One gather for
-    all seeds and rows.
-    Returns a boolean mask over ``seeds`` and ``(S,)`` bounds (exclusive) of the
-    rows the stack spans as far as looked (within ``M`` of ``y``).
+    (a) Grey levels ``lv`` (T, 7) of the triple on its own line (:func:`triple_levels`):
+    the gap must differ from both bars by ``min(min_contrast, min_contrast_ratio * bright)``,
+    the margins must not be nearer the bars' shade than 0.35 of the contrast, and (periodic
+    test) no run beyond a margin may be of the bars' shade (below 0.3).
+
+    (b) Minimum height and aspect tests in advance: the stack through the triple's row
+    ``y`` must be at least ``M`` rows tall, ``M`` = ``min_rows`` or, if more, the least
+    height the aspect test allows for the triple's width (``lo_ratio`` times it). On 8
+    rows either side of ``y``, spaced ``M / 8`` (at least ``min_rows // 6``) apart, 11
+    pixels across the triple -- the middle of each margin, and the first, middle and
+    last non-boundary pixel of each run -- thresholded at the midway level must have
+    the triple's shades (the margin pixels may be blurred grey, within a quarter of the
+    contrast of the threshold, but not clearly of the bars' shade); a single failing
+    sampled row between good ones is forgiven where rows are sampled no further apart
+    than ``max_row_gap + 1``; the run of good sampled rows through ``y`` must be able
+    to span ``M`` rows.
+
+    Args: ``ty`` (T,) rows, ``tx`` (T, 4) run boundaries, ``tpos`` (T,) polarities.
+    Returns ``(seeds, top, bottom, thr, key)``: indices (S,) of the triples that pass,
+    the (exclusive) bounds (S,) of the rows their stacks span as far as looked, the
+    midway grey level (T,) of every triple, and the shape key (S,) (max - min) / max of
+    the three run lengths.
     """
     h, w = image.shape
-    y = tri.y[seeds]
-    xb = tri.x[seeds]
-    width = xb[:, 3] - xb[:, 0]
-    need = np.maximum(int(p.min_rows), (lo_ratio * width).astype(int))  # (S,) least stack height
-    # sample every step-th row (the stack is connected), kmax samples each way: step grows with
-    # the least height, at most min_rows // 6 (about 2 rows) for the smallest targets
+    nt = ty.size
     kmax = 8
-    step = np.maximum(max(1, int(p.min_rows) // 6), -(-(need - 1) // kmax))  # (S,)
-    off = np.arange(-kmax, kmax + 1)
-    rows = y[:, None] + off[None, :] * step[:, None]  # (S, 2K+1)
-    inside = (rows >= 0) & (rows < h)
-    a = xb[:, :3]
-    b = xb[:, 1:]
-    e = np.minimum(1, (b - a - 1) // 2)
-    mw = np.maximum(1, width // 12)
-    cols = np.empty((seeds.size, 11), dtype=xb.dtype)
-    cols[:, 0] = np.maximum(xb[:, 0] - (mw + 1) // 2, 0)
-    cols[:, 1:10:3] = a + e
-    cols[:, 2:10:3] = (a + b) // 2
-    cols[:, 3:10:3] = b - 1 - e
-    cols[:, 10] = np.minimum(xb[:, 3] + mw // 2, w - 1)
-    v = np.take(image, (np.clip(rows, 0, h - 1) * w)[:, :, None] + cols[:, None, :])  # (S, 2K+1, 11), flat index
-    pos = tri.positive[seeds]
-    t = thr[seeds][:, None, None]
-    light = v >= t
-    pattern = np.where(pos[:, None], _PATTERN[None, :], ~_PATTERN[None, :])
-    miss = light != pattern[:, None, :]
-    # the margin pixels may be blurred grey, but not clearly of the bars' shade
-    tol = (0.25 * span[seeds])[:, None]
-    marg = v[:, :, [0, 10]].astype(np.float32)
-    wrong = np.where(pos[:, None, None], marg < t - tol[:, :, None], marg > t + tol[:, :, None])
-    bad = miss[:, :, 1:10].any(axis=2) | wrong.any(axis=2) | ~inside  # (S, 2K+1)
-    # a single failing sampled row between good ones does not break a stack where rows are
-    # sampled no further apart than max_row_gap
-    iso = bad.copy()
-    iso[:, 1:-1] &= ~bad[:, :-2] & ~bad[:, 2:]
-    iso[:, [0, -1]] = False
-    bad &= ~(iso & (step <= p.max_row_gap + 1)[:, None])
-    # sampled rows of the connected run through y: up to the first failing one either way
-    upb = bad[:, kmax::-1]
-    dnb = bad[:, kmax:]
-    n_up = np.where(upb.any(axis=1), upb.argmax(axis=1), kmax + 1)
-    n_dn = np.where(dnb.any(axis=1), dnb.argmax(axis=1), kmax + 1)
-    # n_up + n_dn - 1 good samples in a row: the run spans about that many times step rows
-    return (n_up + n_dn - 1) * step >= need - 1, y - n_up * step, y + n_dn * step
+    thr = np.empty(nt)
+    seeds = np.empty(nt, np.int64)
+    top = np.empty(nt, np.int64)
+    bottom = np.empty(nt, np.int64)
+    key = np.empty(nt)
+    bad = np.empty(2 * kmax + 1, np.bool_)
+    iso = np.empty(2 * kmax + 1, np.bool_)
+    cols = np.empty(11, np.int64)
+    ns = 0
+    for t in range(nt):
+        pos = tpos[t]
+        l0, l1, l2, l3, l4 = lv[t, 0], lv[t, 1], lv[t, 2], lv[t, 3], lv[t, 4]
+        outer = 0.5 * (l1 + l3)
+        dark = outer if pos else l2
+        bright = l2 if pos else outer
+        thr[t] = 0.5 * (dark + bright)
+        if np.isnan(l0) or np.isnan(l1) or np.isnan(l2) or np.isnan(l3) or np.isnan(l4):
+            continue
+        span = max(bright - dark, 1.0)
+        # f: 0 = bar shade, 1 = gap shade, either polarity
+        f0 = (l0 - dark) / span if pos else 1.0 - (l0 - dark) / span
+        f4 = (l4 - dark) / span if pos else 1.0 - (l4 - dark) / span
+        c = min(l2 - l1, l2 - l3) * (1.0 if pos else -1.0)
+        need = min(min_contrast, min_contrast_ratio * bright)
+        if not (c >= need and c > 0 and min(f0, f4) >= 0.35):
+            continue
+        if reject_periodic:
+            periodic = False
+            for r in (5, 6):
+                fr = (lv[t, r] - dark) / span if pos else 1.0 - (lv[t, r] - dark) / span
+                if fr < 0.3:  # NaN (no run flagged) is not periodic
+                    periodic = True
+            if periodic:
+                continue
+        # (b) the height test
+        y = ty[t]
+        x0, x3 = tx[t, 0], tx[t, 3]
+        width = x3 - x0
+        need_rows = max(min_rows, int(lo_ratio * width))
+        step = max(max(1, min_rows // 6), -(-(need_rows - 1) // kmax))
+        mw = max(1, width // 12)
+        cols[0] = max(x0 - (mw + 1) // 2, 0)
+        for j in range(3):
+            a, b = tx[t, j], tx[t, j + 1]
+            e = min(1, (b - a - 1) // 2)
+            cols[1 + 3 * j] = a + e
+            cols[2 + 3 * j] = (a + b) // 2
+            cols[3 + 3 * j] = b - 1 - e
+        cols[10] = min(x3 + mw // 2, w - 1)
+        thr_t = thr[t]
+        tol = 0.25 * (bright - dark)
+        for k in range(2 * kmax + 1):
+            row = y + (k - kmax) * step
+            if row < 0 or row >= h:
+                bad[k] = True
+                continue
+            b_ = False
+            for j in range(1, 10):
+                light = image[row, cols[j]] >= thr_t
+                # shades of a positive target: margin light, bar dark, gap light, bar dark
+                want = (j >= 4 and j <= 6) == pos
+                if light != want:
+                    b_ = True
+            for j in (0, 10):
+                v = float(image[row, cols[j]])
+                if (pos and v < thr_t - tol) or (not pos and v > thr_t + tol):
+                    b_ = True
+            bad[k] = b_
+        iso[0] = False
+        iso[2 * kmax] = False
+        for k in range(1, 2 * kmax):
+            iso[k] = bad[k] and not bad[k - 1] and not bad[k + 1]
+        if step <= max_row_gap + 1:
+            for k in range(2 * kmax + 1):
+                if iso[k]:
+                    bad[k] = False
+        n_up = kmax + 1
+        for k in range(kmax + 1):
+            if bad[kmax - k]:
+                n_up = k
+                break
+        n_dn = kmax + 1
+        for k in range(kmax + 1):
+            if bad[kmax + k]:
+                n_dn = k
+                break
+        if (n_up + n_dn - 1) * step < need_rows - 1:
+            continue
+        seeds[ns] = t
+        top[ns] = y - n_up * step
+        bottom[ns] = y + n_dn * step
+        r0, r1, r2 = tx[t, 1] - x0, tx[t, 2] - tx[t, 1], x3 - tx[t, 2]
+        lmax = max(r0, r1, r2)
+        key[ns] = (lmax - min(r0, r1, r2)) / lmax
+        ns += 1
+    return seeds[:ns], top[:ns], bottom[:ns], thr, key[:ns]
 
 
-#: shades (True = light) of the column test's pixels for a positive target
-_PATTERN = np.array([True, False, False, False, True, True, True, False, False, False, True])
+@numba.njit(cache=True, nogil=True)
+def _fine_rows(image, r0, r1, c0, c1, thr, positive, xg, xa, xb1, xb2, xc, tol, min_bar_px, width_tolerance,
+               width_slack, max_edge_shift, min_margin_ratio):
+    """The per-line test of the fine search (§4.4.1, §4.5.1) over rows ``r0:r1`` and
+    columns ``c0:c1`` of ``image``, thresholded at ``thr`` (a pixel is of the bars' shade
+    when ``< thr`` for positive targets, ``>= thr`` for negative ones).
 
-
-def _run_through(idx: np.ndarray, at: int, step: int):
-    """The connected run of sorted indices ``idx`` through ``at`` (or within ``step`` of
-    it), where consecutive members differ by at most ``step``; ``(first, last)`` or None.
-    (A plain loop: ``idx`` holds a few dozen rows, less than numpy's call overhead.)"""
-    v = idx.tolist()
-    n = len(v)
-    if n == 0:
-        return None
-    j = int(np.searchsorted(idx, at))
-    if j < n and v[j] - at <= step:
-        pass
-    elif j > 0 and at - v[j - 1] <= step:
-        j -= 1
-    else:
-        return None
-    lo = j
-    while lo > 0 and v[lo] - v[lo - 1] <= step:
-        lo -= 1
-    hi = j
-    while hi < n - 1 and v[hi + 1] - v[hi] <= step:
-        hi += 1
-    return v[lo], v[hi]
+    On each line the gap run holding column ``xg`` (relative to ``c0``) and the runs
+    either side of it are found by walking out from ``xg``: left margin start ``l3``,
+    bar 1 start ``l2``, gap start ``l1``, gap end ``r1``, bar 2 end ``r2``, right margin
+    end ``r3`` (the margins are cut at the region's sides). A line matches when the
+    three runs are at least ``min_bar_px`` long and near-equal (:func:`near_equal`),
+    its margins are at least ``min_margin_ratio`` of the mean run, and its four
+    boundaries are within ``tol`` px of the coarse hit's ``xa, xb1, xb2, xc``.
+    Returns ``ok`` ``(r1 - r0,)`` bool and ``(r1 - r0, 4)`` boundaries ``l2, l1, r1, r2``
+    (columns relative to ``c0``).
+    """
+    nrow = r1 - r0
+    ncol = c1 - c0
+    ok = np.zeros(nrow, np.bool_)
+    bnd = np.zeros((nrow, 4), np.int64)
+    for i in range(nrow):
+        row = image[r0 + i, c0:c1]
+        if (row[xg] < thr) == positive:  # the hit's gap column has the bars' shade
+            continue
+        l1 = xg
+        while l1 > 0 and (row[l1 - 1] < thr) != positive:
+            l1 -= 1
+        if l1 == 0:
+            continue
+        l2 = l1 - 1
+        while l2 > 0 and (row[l2 - 1] < thr) == positive:
+            l2 -= 1
+        l3 = 0
+        if l2 > 0:
+            l3 = l2 - 1
+            while l3 > 0 and (row[l3 - 1] < thr) != positive:
+                l3 -= 1
+        rr1 = xg + 1
+        while rr1 < ncol and (row[rr1] < thr) != positive:
+            rr1 += 1
+        if rr1 == ncol:
+            continue
+        rr2 = rr1 + 1
+        while rr2 < ncol and (row[rr2] < thr) == positive:
+            rr2 += 1
+        rr3 = rr2
+        if rr2 < ncol:
+            rr3 = rr2 + 1
+            while rr3 < ncol and (row[rr3] < thr) != positive:
+                rr3 += 1
+        b1 = l1 - l2
+        gp = rr1 - l1
+        b2 = rr2 - rr1
+        if min(b1, gp, b2) < min_bar_px:
+            continue
+        if not _near_equal(float(b1), float(gp), float(b2), width_tolerance, width_slack, max_edge_shift):
+            continue
+        if 3.0 * min(l2 - l3, rr3 - rr2) < min_margin_ratio * (b1 + gp + b2):
+            continue
+        if abs(l2 - xa) > tol or abs(rr2 - xc) > tol or abs(l1 - xb1) > tol or abs(rr1 - xb2) > tol:
+            continue
+        ok[i] = True
+        bnd[i, 0] = l2
+        bnd[i, 1] = l1
+        bnd[i, 2] = rr1
+        bnd[i, 3] = rr2
+    return ok, bnd
 
 
 def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, p: DetectorParams,
                span: tuple[int, int], stats: DetectionStats) -> Stack | None:
     """Fine search (§4.4.1) around the coarse hit at row ``y`` with run boundaries ``xb`` (4,),
-    over the rows ``span`` (exclusive bounds, from :func:`_tall_enough`).
+    over the rows ``span`` (exclusive bounds, from :func:`_coarse_seeds`).
 
     Every line of a region of interest around the hit is thresholded at ``thr``
     (midway between the hit's dark and bright levels, §4.4.2); on each line the
     two transitions either side of the hit's gap centre give that line's bar,
     gap, bar and margin runs, which must pass the §4.5.1 test and stay within
     half a bar of the hit's boundaries (the bars' vertical edges are vertical
-    in the image of a level camera). The connected run of matching lines
-    through the hit (at most ``max_row_gap`` lines missing in a row) is the stack.
+    in the image of a level camera) (:func:`_fine_rows`). The connected run of matching lines
+    through the hit (at most ``max_row_gap`` lines missing in a row) is the stack;
+    the region grows while the stack reaches its top or bottom line (:func:`_fine_stack`).
     """
+    rows, x, med, scanned = _fine_stack(image, int(y), int(xb[0]), int(xb[1]), int(xb[2]), int(xb[3]),
+                                        bool(positive), float(thr), int(span[0]), int(span[1]),
+                                        int(p.max_row_gap), int(p.min_bar_px), float(p.width_tolerance),
+                                        float(p.width_slack), float(p.max_edge_shift), float(p.min_margin_ratio))
+    stats.rows_scanned += int(scanned)
+    if rows.size == 0:
+        stats.reject("fine_scan")
+        return None
+    return Stack(rows=rows, x=x, positive=positive, median_x=med)
+
+
+@numba.njit(cache=True, nogil=True)
+def _fine_stack(image, y, xa, xb1, xb2, xc, positive, thr, span0, span1, max_row_gap, min_bar_px,
+                width_tolerance, width_slack, max_edge_shift, min_margin_ratio):
+    """The region loop of :func:`_fine_scan`. Returns ``(rows (n,), x (n, 4), median_x (4,),
+    rows_scanned)``; ``n`` is 0 when no matching line connects to the hit's row ``y``."""
     h, w = image.shape
-    width = xb[3] - xb[0]
+    width = xc - xa
     m = width / 3.0
     pad = int(m) + 3
-    c0 = max(0, xb[0] - pad)
-    c1 = min(w, xb[3] + pad)
-    r0 = max(0, span[0] - 1)
-    r1 = min(h, span[1] + 1)
+    c0 = max(0, xa - pad)
+    c1 = min(w, xc + pad)
+    r0 = max(0, span0 - 1)
+    r1 = min(h, span1 + 1)
+    xg = (xb1 + xb2) // 2 - c0
+    tol = max(2.0, 0.5 * m)
+    step = 1 + max_row_gap
+    scanned = 0
+    lo = 0
+    hi = -1
+    ok = np.zeros(0, np.bool_)
+    bnd = np.zeros((0, 4), np.int64)
     for _ in range(8):  # grow the region while the stack reaches its top or bottom line
-        roi = image[r0:r1, c0:c1]
-        nrow, ncol = roi.shape
-        stats.rows_scanned += nrow
-        bar = (roi < thr) if positive else (roi >= thr)
-        xg = (xb[1] + xb[2]) // 2 - c0
-        # run-length code of the whole region at once: run starts (row * ncol + column), a
-        # sentinel start at the end of each row; the gap run is the one holding column xg
-        flat = bar.ravel()
-        chg = np.empty(flat.size, bool)
-        chg[0] = True
-        np.not_equal(flat[1:], flat[:-1], out=chg[1:])
-        chg[::ncol] = True
-        starts = np.flatnonzero(chg)
-        ends = np.arange(1, nrow + 1) * ncol  # row ends, as run starts of the next row
-        key = np.concatenate([starts, ends])
-        key.sort()
-        key = np.concatenate([np.full(3, -ncol), key, np.full(3, (nrow + 2) * ncol)])
-        rowb = np.arange(nrow) * ncol
-        j = np.searchsorted(key, rowb + xg, side="right")  # first start right of xg
-        # starts of the gap (l_1), bar 1 (l_2), left margin (l_3); ends of gap, bar 2, right margin
-        l_1, l_2, l_3 = key[j - 1] - rowb, key[j - 2] - rowb, np.maximum(key[j - 3] - rowb, 0)
-        r_1, r_2, r_3 = key[j] - rowb, key[j + 1] - rowb, np.minimum(key[j + 2] - rowb, ncol)
-        b1 = l_1 - l_2
-        gp = r_1 - l_1
-        b2 = r_2 - r_1
-        ok = ~bar[:, xg] & (l_2 >= 0) & (r_2 <= ncol) & (np.minimum(np.minimum(b1, gp), b2) >= p.min_bar_px)
-        ok &= near_equal(b1, gp, b2, p) & (3.0 * np.minimum(l_2 - l_3, r_3 - r_2) >= p.min_margin_ratio * (b1 + gp + b2))
-        tol = max(2.0, 0.5 * m)
-        ok &= (np.abs(l_2 + (c0 - xb[0])) <= tol) & (np.abs(r_2 + (c0 - xb[3])) <= tol)
-        ok &= (np.abs(l_1 + (c0 - xb[1])) <= tol) & (np.abs(r_1 + (c0 - xb[2])) <= tol)
-        good = np.flatnonzero(ok)
-        run = _run_through(good, y - r0, 1 + int(p.max_row_gap))
-        if run is None:
-            stats.reject("fine_scan")
-            return None
-        sel = good[(good >= run[0]) & (good <= run[1])]
-        grow_up = sel[0] == 0 and r0 > 0
-        grow_dn = sel[-1] == nrow - 1 and r1 < h
+        nrow = r1 - r0
+        scanned += nrow
+        ok, bnd = _fine_rows(image, r0, r1, c0, c1, thr, positive, xg, xa - c0, xb1 - c0, xb2 - c0, xc - c0,
+                             tol, min_bar_px, width_tolerance, width_slack, max_edge_shift, min_margin_ratio)
+        # the connected run of matching lines through (or within `step` of) line y - r0,
+        # consecutive matching lines at most `step` apart
+        at = y - r0
+        j = -1
+        for i in range(max(0, at), min(nrow, at + step + 1)):  # first matching line at or below `at`
+            if ok[i]:
+                j = i
+                break
+        if j < 0:
+            for i in range(min(at - 1, nrow - 1), max(-1, at - step - 1), -1):
+                if ok[i]:
+                    j = i
+                    break
+        if j < 0:
+            return np.zeros(0, np.int64), np.zeros((0, 4), np.int64), np.zeros(4), scanned
+        lo = j
+        while True:
+            k = lo - 1
+            while k >= 0 and not ok[k] and lo - k <= step:
+                k -= 1
+            if k >= 0 and ok[k] and lo - k <= step:
+                lo = k
+            else:
+                break
+        hi = j
+        while True:
+            k = hi + 1
+            while k < nrow and not ok[k] and k - hi <= step:
+                k += 1
+            if k < nrow and ok[k] and k - hi <= step:
+                hi = k
+            else:
+                break
+        grow_up = lo == 0 and r0 > 0
+        grow_dn = hi == nrow - 1 and r1 < h
         if not (grow_up or grow_dn):
             break
-        extra = max(2 * (sel[-1] - sel[0] + 1), 8)
+        extra = max(2 * (hi - lo + 1), 8)
         if grow_up:
             r0 = max(0, r0 - extra)
         if grow_dn:
             r1 = min(h, r1 + extra)
-    x = np.stack([l_2[sel], l_1[sel], r_1[sel], r_2[sel]], axis=1) + c0
-    xs = np.sort(x, axis=0)
-    mid = sel.size // 2
-    med = xs[mid].astype(float) if sel.size % 2 else 0.5 * (xs[mid - 1] + xs[mid])
-    return Stack(rows=sel + r0, x=x, positive=positive, median_x=med)
+    n = 0
+    for i in range(lo, hi + 1):
+        if ok[i]:
+            n += 1
+    rows = np.empty(n, np.int64)
+    x = np.empty((n, 4), np.int64)
+    k = 0
+    for i in range(lo, hi + 1):
+        if ok[i]:
+            rows[k] = i + r0
+            for c in range(4):
+                x[k, c] = bnd[i, c] + c0
+            k += 1
+    med = np.empty(4)
+    for c in range(4):
+        xs = np.sort(x[:, c])
+        med[c] = xs[n // 2] if n % 2 else 0.5 * (xs[n // 2 - 1] + xs[n // 2])
+    return rows, x, med, scanned
 
 
-def _rough_ends(image: np.ndarray, r0: int, r1: int, nr: int, col: int, thr: float, positive: bool) -> tuple[int, int]:
+@numba.njit(cache=True, nogil=True)
+def _rough_ends(image, r0, r1, nr, col, thr, positive):
     """First and last row of the bar crossing rows ``r0..r1`` at column ``col``: walk
-    up and down from the stack while the pixel keeps the bar's shade."""
+    up and down (at most ``nr`` rows) from the stack while the pixel keeps the bar's shade
+    (``< thr`` for positive targets). Returns ``(top, bottom)`` rows."""
     h = image.shape[0]
-    up = image[max(0, r0 - nr):r0 + 1, col][::-1]
-    dn = image[r1:min(h, r1 + nr + 1), col]
-    if positive:
-        nu = np.flatnonzero(up >= thr)
-        nd = np.flatnonzero(dn >= thr)
-    else:
-        nu = np.flatnonzero(up < thr)
-        nd = np.flatnonzero(dn < thr)
-    top = r0 - (int(nu[0]) - 1 if nu.size else up.size - 1)
-    bot = r1 + (int(nd[0]) - 1 if nd.size else dn.size - 1)
+    lo = max(0, r0 - nr)
+    top = lo
+    for r in range(r0, lo - 1, -1):
+        if (image[r, col] < thr) != positive:  # the first pixel off the bar
+            top = r + 1
+            break
+    hi = min(h, r1 + nr + 1) - 1
+    bot = hi
+    for r in range(r1, hi + 1):
+        if (image[r, col] < thr) != positive:
+            bot = r - 1
+            break
     return top, bot
+
+
+@numba.njit(cache=True, nogil=True)
+def _mean_sd(image, r0, r1, c0, c1):
+    """Mean and (population) standard deviation of ``image[r0:r1, c0:c1]`` (grey levels)."""
+    s = 0.0
+    ss = 0.0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            v = float(image[r, c])
+            s += v
+            ss += v * v
+    n = max((r1 - r0) * (c1 - c0), 1)
+    mu = s / n
+    return mu, math.sqrt(max(ss / n - mu * mu, 0.0))
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_shade(image, r0, r1, c0, c1, thr, light):
+    """Pixels of ``image[r0:r1, c0:c1]`` that are ``>= thr`` (``light``) or ``< thr``."""
+    n = 0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            if (image[r, c] >= thr) == light:
+                n += 1
+    return n
+
+
+#: rejection reasons of :func:`_verify_grey`, by its return code
+_VERIFY_REASONS = ("", "uniformity", "contrast", "bar_ends", "bar_heights", "out_of_view", "margins")
+
+
+@numba.njit(cache=True, nogil=True)
+def _verify_grey(image, r0, r1, nr, ra, rb, xb, positive, uniformity, min_contrast, min_contrast_ratio,
+                 height_term, check_margins):
+    """The grey-level part of :func:`verify_stack` for the stack on rows ``r0..r1`` (``nr``
+    rows) with median run boundaries ``xb`` (4,), its segments sampled on rows ``ra:rb``.
+
+    Uniform segments (``3.3 sd`` of the non-boundary pixels at most ``uniformity``),
+    contrast between them, the rough bar ends (:func:`_rough_ends`) at each bar's centre
+    column near the stack's ends, bar heights differing by at most ``height_term * h^2``
+    plus slack (``height_term = 2 (b / H) sin(max_alpha) / fy``), and (``check_margins``)
+    the blank margins above and below both bars. Returns ``(code, dark, bright, top1,
+    bottom1, top2, bottom2)``; ``code`` 0 = passed, else an index into ``_VERIFY_REASONS``.
+    """
+    h, w = image.shape
+    xi = np.empty(4, np.int64)
+    for k in range(4):
+        xi[k] = int(np.rint(xb[k]))
+    means = np.empty(3)
+    spread = 0.0
+    for s in range(3):
+        a, b = xi[s], xi[s + 1]
+        mm = min(2, (b - a - 1) // 2)
+        mu, sd = _mean_sd(image, ra, rb, a + mm, b - mm)
+        means[s] = mu
+        spread = max(spread, 3.3 * sd)
+    if spread > uniformity:
+        return 1, 0.0, 0.0, 0, 0, 0, 0
+    if positive:
+        dark, bright = 0.5 * (means[0] + means[2]), means[1]
+        c = min(means[1] - means[0], means[1] - means[2])
+    else:
+        dark, bright = means[1], 0.5 * (means[0] + means[2])
+        c = min(means[0] - means[1], means[2] - means[1])
+    need = min(min_contrast, min_contrast_ratio * bright)
+    if c < need or c <= 0:
+        return 2, dark, bright, 0, 0, 0, 0
+    thr = 0.5 * (dark + bright)
+    t0, b0 = _rough_ends(image, r0, r1, nr, min(max((xi[0] + xi[1]) // 2, 0), w - 1), thr, positive)
+    t1, b1 = _rough_ends(image, r0, r1, nr, min(max((xi[2] + xi[3]) // 2, 0), w - 1), thr, positive)
+    # the stack ends where the shorter bar ends (a margin strip next to a bar, seen as a
+    # bar of the other polarity, runs on past both ends of the stack)
+    slack = 2 + 0.05 * nr
+    if min(r0 - t0, r0 - t1) > slack or min(b0 - r1, b1 - r1) > slack:
+        return 3, dark, bright, t0, b0, t1, b1
+    # bar heights h1, h2 differ at most as the ranges of the bar centres do (|alpha| <= max_alpha):
+    # |h1 - h2| / h <= 2 b sin(max_alpha) / Z with Z = fy H / h (eq 4.3), plus 2 rows of slack
+    h0, h1 = b0 - t0 + 1, b1 - t1 + 1
+    hm = 0.5 * (h0 + h1)
+    if abs(h0 - h1) > height_term * hm * hm + 2.0 + 0.03 * hm:
+        return 4, dark, bright, t0, b0, t1, b1
+    if check_margins:
+        # blank margin above and below each bar (thesis §3.4: s = H/4 tall)
+        for k in range(2):
+            t, b = (t0, b0) if k == 0 else (t1, b1)
+            hb = b - t + 1
+            ka = max(2, int(np.rint(0.12 * hb)))
+            kb = max(ka, int(np.rint(0.17 * hb)))
+            if t - kb < 0 or b + kb >= h:
+                return 5, dark, bright, t0, b0, t1, b1
+            a, bb = xi[2 * k], xi[2 * k + 1]
+            for ya, yb in ((t - kb, t - ka + 1), (b + ka, b + kb + 1)):
+                if _count_shade(image, ya, yb, a, bb, thr, positive) < 0.75 * (yb - ya) * max(bb - a, 0):
+                    return 6, dark, bright, t0, b0, t1, b1
+    return 0, dark, bright, t0, b0, t1, b1
 
 
 def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stack, p: DetectorParams,
@@ -341,8 +573,6 @@ def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stac
     connectivity is built into the stack. Also, with ``check_margins``: the
     blank margin above and below each bar.
     """
-    import cv2
-
     h, w = image.shape
     nr = st.n_rows
     if nr < p.min_rows:
@@ -362,60 +592,12 @@ def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stac
     if rb - ra < 2:
         stats.reject("min_rows")
         return None
-    xi = [int(v) for v in np.rint(xb)]
-    means, spreads = [], []
-    for s in range(3):
-        a, b = xi[s], xi[s + 1]
-        mm = min(2, (b - a - 1) // 2)
-        mu, sd = cv2.meanStdDev(image[ra:rb, a + mm:b - mm])
-        means.append(float(mu[0, 0]))
-        spreads.append(3.3 * float(sd[0, 0]))
-    if max(spreads) > p.uniformity:
-        stats.reject("uniformity")
+    code, dark, bright, t0, b0, t1, b1 = _verify_grey(
+        image, r0, r1, nr, ra, rb, np.asarray(xb, np.float64), bool(st.positive), float(p.uniformity),
+        float(p.min_contrast), float(p.min_contrast_ratio),
+        2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) / camera.fy, bool(p.check_margins))
+    if code:
+        stats.reject(_VERIFY_REASONS[code])
         return None
-    if st.positive:
-        dark, bright = 0.5 * (means[0] + means[2]), means[1]
-        contrasts = (means[1] - means[0], means[1] - means[2])
-    else:
-        dark, bright = means[1], 0.5 * (means[0] + means[2])
-        contrasts = (means[0] - means[1], means[2] - means[1])
-    need = min(p.min_contrast, p.min_contrast_ratio * bright)
-    if min(contrasts) < need or min(contrasts) <= 0:
-        stats.reject("contrast")
-        return None
-    thr = 0.5 * (dark + bright)
-    ends = []
-    for k in range(2):
-        col = min(max((xi[2 * k] + xi[2 * k + 1]) // 2, 0), w - 1)
-        ends.append(_rough_ends(image, r0, r1, nr, col, thr, st.positive))
-    # the stack ends where the shorter bar ends (a margin strip next to a bar, seen as a
-    # bar of the other polarity, runs on past both ends of the stack)
-    slack = 2 + 0.05 * nr
-    if min(r0 - ends[0][0], r0 - ends[1][0]) > slack or min(ends[0][1] - r1, ends[1][1] - r1) > slack:
-        stats.reject("bar_ends")
-        return None
-    # bar heights h1, h2 differ at most as the ranges of the bar centres do (|alpha| <= max_alpha):
-    # |h1 - h2| / h <= 2 b sin(max_alpha) / Z with Z = fy H / h (eq 4.3), plus 2 rows of slack
-    hs = [b - t + 1 for t, b in ends]
-    hm = 0.5 * (hs[0] + hs[1])
-    if abs(hs[0] - hs[1]) > 2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) * hm * hm \
-            / camera.fy + 2.0 + 0.03 * hm:
-        stats.reject("bar_heights")
-        return None
-    if p.check_margins:
-        # blank margin above and below each bar (thesis §3.4: s = H/4 tall)
-        for k in range(2):
-            t, b = ends[k]
-            hb = b - t + 1
-            ka = max(2, int(round(0.12 * hb)))
-            kb = max(ka, int(round(0.17 * hb)))
-            if t - kb < 0 or b + kb >= h:
-                stats.reject("out_of_view")
-                return None
-            a, bb = xi[2 * k], xi[2 * k + 1]
-            for band in (image[t - kb:t - ka + 1, a:bb], image[b + ka:b + kb + 1, a:bb]):
-                frac_bg = float(np.count_nonzero(band >= thr) if st.positive else np.count_nonzero(band < thr))
-                if frac_bg < 0.75 * band.size:
-                    stats.reject("margins")
-                    return None
+    ends = ((int(t0), int(b0)), (int(t1), int(b1)))
     return Stack(st.rows, st.x, st.positive, dark, bright, tuple(ends), xb)

@@ -2,35 +2,20 @@
 
 Everything works on a whole batch of scan lines at once (a ``(k, W)`` uint8
 array): the coarse scan of §4.4.1 thresholds, codes and searches its
-``H / N`` lines with a fixed number of numpy calls, whatever the image holds.
-Per-call overhead of numpy (1-5 µs) dominates on arrays this small, so the
-functions here avoid per-line or per-run Python loops.
+``H / N`` lines. The per-pixel and per-run loops are compiled with numba
+(``_``-prefixed kernels): numpy's per-call overhead (1-5 µs) would dominate on
+arrays this small. The first call in a fresh environment compiles them (cached
+in ``__pycache__`` afterwards).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from localizer.params import DetectorParams
-
-
-def line_thresholds(lines: np.ndarray, p: DetectorParams) -> np.ndarray:
-    """Per-line threshold of §4.4.2, ``(k,)`` grey levels (a pixel is white when ``>=``).
-
-    The contrast over every ``contrast_window``-pixel stretch of a line is
-    computed; if its maximum reaches ``local_contrast`` the line is
-    thresholded midway between its brightest and darkest pixel, otherwise at
-    the global threshold.
-    """
-    import cv2
-
-    k = int(p.contrast_window) - 1
-    contrast = cv2.absdiff(lines[:, k:], lines[:, :-k]).max(axis=1)
-    hi = lines.max(axis=1).astype(np.int32)
-    lo = lines.min(axis=1).astype(np.int32)
-    mid = (hi + lo + 1) // 2
-    return np.where(contrast >= p.local_contrast, mid, int(np.ceil(p.global_threshold))).astype(np.uint8)
 
 
 def threshold_lines(lines: np.ndarray, p: DetectorParams, window: int) -> np.ndarray:
@@ -39,22 +24,51 @@ def threshold_lines(lines: np.ndarray, p: DetectorParams, window: int) -> np.nda
     The thesis takes one midway threshold per line. On a cluttered line that
     level is set by whatever is brightest and darkest anywhere on the line, so
     here the midway level is taken over a ``window``-pixel neighbourhood of
-    each pixel (running max / min, i.e. a 1-D dilation / erosion) wherever that
-    neighbourhood has at least ``local_contrast`` grey levels of contrast; in
-    flat stretches (the inside of a bar wider than the window) the line's own
-    thesis threshold (:func:`line_thresholds`) is used.
+    each pixel (running max / min, i.e. a 1-D dilation / erosion, by OpenCV)
+    wherever that neighbourhood has at least ``local_contrast`` grey levels of
+    contrast; in flat stretches (the inside of a bar wider than the window) the
+    line's own thesis threshold is used (:func:`_threshold`).
     """
     import cv2
 
+    lines = np.ascontiguousarray(lines)
     kernel = np.ones((1, int(window)), np.uint8)
     hi = cv2.dilate(lines, kernel, borderType=cv2.BORDER_REPLICATE)
     lo = cv2.erode(lines, kernel, borderType=cv2.BORDER_REPLICATE)
-    contrast = cv2.subtract(hi, lo)
-    mid = cv2.subtract(hi, contrast >> 1)  # (hi + lo + 1) // 2 without overflow
-    flat = contrast < p.local_contrast
-    local = lines >= mid
-    glob = lines >= line_thresholds(lines, p)[:, None]
-    return (local & ~flat) | (glob & flat)
+    return _threshold(lines, hi, lo, int(p.contrast_window), float(p.local_contrast),
+                      min(255, int(math.ceil(p.global_threshold))))
+
+
+@numba.njit(cache=True, nogil=True)
+def _threshold(lines, hi, lo, contrast_window, local_contrast, global_level):
+    """Per-pixel threshold of :func:`threshold_lines` given the running max ``hi`` and min
+    ``lo`` (k, W) of the lines.
+
+    Per line (the thesis's rule): if the largest contrast over any ``contrast_window``-pixel
+    stretch reaches ``local_contrast``, the line's threshold is midway between its
+    brightest and darkest pixel, else ``global_level``. Per pixel: where ``hi - lo`` reaches
+    ``local_contrast`` the pixel is white when ``>= hi - (hi - lo) // 2`` (midway, rounded
+    up), elsewhere when ``>=`` the line's threshold.
+    """
+    k_n, w = lines.shape
+    out = np.empty((k_n, w), np.bool_)
+    k = contrast_window - 1
+    for r in range(k_n):
+        row = lines[r]
+        cmax = np.int32(0)
+        for c in range(w - k):
+            cmax = max(cmax, abs(np.int32(row[c + k]) - np.int32(row[c])))
+        vmax = np.int32(0)
+        vmin = np.int32(255)
+        for c in range(w):
+            vmax = max(vmax, np.int32(row[c]))
+            vmin = min(vmin, np.int32(row[c]))
+        line_thr = (vmax + vmin + 1) // 2 if cmax >= local_contrast else global_level
+        for c in range(w):  # branch-free, so that it vectorises
+            con = np.int32(hi[r, c]) - np.int32(lo[r, c])
+            t = np.int32(hi[r, c]) - (con >> 1) if con >= local_contrast else np.int32(line_thr)
+            out[r, c] = np.int32(row[c]) >= t
+    return out
 
 
 @dataclass(frozen=True)
@@ -77,24 +91,40 @@ class Runs:
 def run_length_code(binary: np.ndarray, rows: np.ndarray, x_offset: int = 0) -> Runs:
     """Run-length code a ``(k, W)`` boolean batch whose lines are image ``rows`` (``(k,)``).
 
-    One pass over the flattened batch: a run starts wherever a pixel differs
-    from its left neighbour or a line starts.
+    Compiled (:func:`_rle`): a run starts wherever a pixel differs from its left
+    neighbour or a line starts.
     """
+    g, l, line, x = _rle(np.ascontiguousarray(binary, dtype=np.bool_))
+    return Runs(g=g, l=l, y=np.asarray(rows)[line], x=x + x_offset, line=line, width=binary.shape[1] + x_offset)
+
+
+@numba.njit(cache=True, nogil=True)
+def _rle(binary):
+    """Run-length code of a ``(k, W)`` boolean batch, line by line: ``(g, l, line, x)``
+    ``(R,)`` arrays (shade, length, line index, first column) in line then x order."""
     k, w = binary.shape
-    flatb = binary.ravel()
-    change = np.empty(k * w, dtype=bool)
-    change[0] = True
-    np.not_equal(flatb[1:], flatb[:-1], out=change[1:])
-    change[::w] = True
-    start = np.flatnonzero(change)
-    end = np.empty_like(start)
-    end[:-1] = start[1:]
-    end[-1] = k * w
-    line = start // w
-    x = start - line * w
-    # a run never crosses a line end: the next line's first pixel always starts a run
-    return Runs(g=flatb[start], l=end - start, y=np.asarray(rows)[line], x=x + x_offset, line=line,
-                width=w + x_offset)
+    b8 = binary.view(np.uint8)
+    n = 0
+    for r in range(k):
+        n += 1
+        for c in range(1, w):
+            n += b8[r, c] ^ b8[r, c - 1]
+    g = np.empty(n, np.bool_)
+    ln = np.empty(n, np.int64)
+    line = np.empty(n, np.int64)
+    x = np.empty(n, np.int64)
+    j = 0
+    for r in range(k):
+        start = 0
+        for c in range(1, w + 1):
+            if c == w or b8[r, c] != b8[r, start]:
+                g[j] = b8[r, start] != 0
+                ln[j] = c - start
+                line[j] = r
+                x[j] = start
+                j += 1
+                start = c
+    return g, ln, line, x
 
 
 @dataclass(frozen=True)
@@ -126,7 +156,8 @@ _EMPTY = Triples(np.zeros(0, int), np.zeros(0, int), np.zeros((0, 4), int), np.z
 
 
 def near_equal(l0, l1, l2, p: DetectorParams):
-    """The §4.5.1 test "three runs of approximately equal length", element-wise.
+    """The §4.5.1 test "three runs of approximately equal length", element-wise (arrays broadcast;
+    :func:`_near_equal` is the compiled rule the scans use).
 
     Blur with clipping (saturation) or a threshold off the midway level moves
     every edge towards its dark side by a common amount, shrinking the dark runs
@@ -135,13 +166,23 @@ def near_equal(l0, l1, l2, p: DetectorParams):
     longest and shortest run may differ by ``width_tolerance`` of the longest plus
     ``width_slack`` px.
     """
-    c = np.minimum(np.maximum((l1 - 0.5 * (l0 + l2)) * 0.25, -p.max_edge_shift), p.max_edge_shift)
+    a0, a1, a2 = np.broadcast_arrays(np.asarray(l0, float), np.asarray(l1, float), np.asarray(l2, float))
+    out = np.empty(a0.shape, bool)
+    for k in np.ndindex(a0.shape):
+        out[k] = _near_equal(a0[k], a1[k], a2[k], float(p.width_tolerance), float(p.width_slack),
+                             float(p.max_edge_shift))
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _near_equal(l0, l1, l2, width_tolerance, width_slack, max_edge_shift):
+    """:func:`near_equal` for one triple of run lengths (px)."""
+    c = min(max((l1 - 0.5 * (l0 + l2)) * 0.25, -max_edge_shift), max_edge_shift)
     a0 = l0 + 2.0 * c
     a1 = l1 - 2.0 * c
     a2 = l2 + 2.0 * c
-    lmax = np.maximum(np.maximum(a0, a1), a2)
-    lmin = np.minimum(np.minimum(a0, a1), a2)
-    return (lmax - lmin) <= p.width_tolerance * lmax + p.width_slack
+    lmax = max(a0, a1, a2)
+    return lmax - min(a0, a1, a2) <= width_tolerance * lmax + width_slack
 
 
 def find_triples(runs: Runs, p: DetectorParams) -> Triples:
@@ -151,59 +192,75 @@ def find_triples(runs: Runs, p: DetectorParams) -> Triples:
     with margin runs of at least ``min_margin_ratio`` times their mean on both sides.
     With ``reject_periodic``, triples inside five or more equal runs (gratings,
     chessboards) are dropped."""
-    l = runs.l
+    if runs.l.size < 5:
+        return _EMPTY
+    i, xs, reg = _triples(runs.l, runs.x, runs.line, int(runs.width), int(p.min_bar_px), float(p.width_tolerance),
+                          float(p.width_slack), float(p.max_edge_shift), float(p.min_margin_ratio),
+                          bool(p.reject_periodic), float(p.periodic_tolerance))
+    if i.size == 0:
+        return _EMPTY
+    return Triples(y=runs.y[i], line=runs.line[i], x=xs, positive=~runs.g[i], regions=reg)
+
+
+@numba.njit(cache=True, nogil=True)
+def _triples(l, x, line, width, min_bar_px, width_tolerance, width_slack, max_edge_shift, min_margin_ratio,
+             reject_periodic, periodic_tolerance):
+    """The loop of :func:`find_triples` over run-length code ``l``, ``x``, ``line`` (R,).
+
+    Returns ``(i (T,), x (T, 4), regions (T, 7, 2))``: the index of each triple's first
+    bar, its run boundaries and sampled regions (see :class:`Triples`).
+    """
     n = l.size
-    if n < 5:
-        return _EMPTY
-    line = runs.line
-    longr = l >= p.min_bar_px
-    # first-bar index i in 1..n-4; runs i-1 .. i+3 on one line (lines are sorted)
-    cand = longr[1:-3] & longr[2:-2] & longr[3:-1] & (line[:-4] == line[4:])
-    i = np.flatnonzero(cand) + 1
-    if i.size == 0:
-        return _EMPTY
-    ok = near_equal(l[i], l[i + 1], l[i + 2], p)
-    ok &= 3 * np.minimum(l[i - 1], l[i + 3]) >= p.min_margin_ratio * (l[i] + l[i + 1] + l[i + 2])
-    i = i[ok]
-    if i.size == 0:
-        return _EMPTY
-    x = runs.x
-    x0, x1, x2 = x[i], x[i + 1], x[i + 2]
-    x3 = x2 + l[i + 2]
-    # sampled regions (start, end): left margin, bar, gap, bar, right margin, and the runs
-    # beyond the margins when those could make five equal runs (else empty)
-    b = (x3 - x0) / 3.0
-    mw = np.maximum(1, (b * 0.25).astype(x.dtype))
-    e0 = np.minimum(2, (x1 - x0 - 1) // 2)
-    e1 = np.minimum(2, (x2 - x1 - 1) // 2)
-    e2 = np.minimum(2, (x3 - x2 - 1) // 2)
-    reg = np.empty((i.size, 7, 2), dtype=x.dtype)
-    reg[:, 0, 0] = np.maximum(x0 - mw, 0)
-    reg[:, 0, 1] = x0
-    reg[:, 1, 0] = x0 + e0
-    reg[:, 1, 1] = x1 - e0
-    reg[:, 2, 0] = x1 + e1
-    reg[:, 2, 1] = x2 - e1
-    reg[:, 3, 0] = x2 + e2
-    reg[:, 3, 1] = x3 - e2
-    reg[:, 4, 0] = x3
-    reg[:, 4, 1] = np.minimum(x3 + mw, runs.width)
-    reg[:, 5:, :] = 0
-    if p.reject_periodic:
-        # five or more equal runs in a row (a grating, a chessboard): flag the run beyond
-        # each margin; its grey level decides (a bar's shade = periodic, see find_stacks)
-        tol = p.periodic_tolerance * b + 1.0
-        im2 = np.maximum(i - 2, 0)
-        ip4 = np.minimum(i + 4, n - 1)
-        li = line[i]
-        left = (line[im2] == li) & (i >= 2) & (np.abs(l[i - 1] - b) <= tol) & (np.abs(l[im2] - b) <= tol)
-        right = (line[ip4] == li) & (i + 4 < n) & (np.abs(l[i + 3] - b) <= tol) & (np.abs(l[ip4] - b) <= tol)
-        reg[left, 5, 0] = x[im2[left]]
-        reg[left, 5, 1] = x[im2[left]] + l[im2[left]]
-        reg[right, 6, 0] = x[ip4[right]]
-        reg[right, 6, 1] = x[ip4[right]] + l[ip4[right]]
-    return Triples(y=runs.y[i], line=line[i], x=np.stack([x0, x1, x2, x3], axis=1), positive=~runs.g[i],
-                   regions=reg)
+    idx = np.empty(max(n - 4, 0), np.int64)
+    t = 0
+    for i in range(1, n - 3):
+        if line[i - 1] != line[i + 3] or l[i] < min_bar_px or l[i + 1] < min_bar_px or l[i + 2] < min_bar_px:
+            continue
+        l0, l1, l2 = l[i], l[i + 1], l[i + 2]
+        if not _near_equal(float(l0), float(l1), float(l2), width_tolerance, width_slack, max_edge_shift):
+            continue
+        if 3 * min(l[i - 1], l[i + 3]) < min_margin_ratio * (l0 + l1 + l2):
+            continue
+        idx[t] = i
+        t += 1
+    idx = idx[:t]
+    xs = np.empty((t, 4), np.int64)
+    reg = np.zeros((t, 7, 2), np.int64)
+    for k in range(t):
+        i = idx[k]
+        x0, x1, x2 = x[i], x[i + 1], x[i + 2]
+        x3 = x2 + l[i + 2]
+        xs[k, 0] = x0
+        xs[k, 1] = x1
+        xs[k, 2] = x2
+        xs[k, 3] = x3
+        # sampled regions (start, end): left margin, bar, gap, bar, right margin
+        b = (x3 - x0) / 3.0
+        mw = max(1, int(b * 0.25))
+        e0 = min(2, (x1 - x0 - 1) // 2)
+        e1 = min(2, (x2 - x1 - 1) // 2)
+        e2 = min(2, (x3 - x2 - 1) // 2)
+        reg[k, 0, 0] = max(x0 - mw, 0)
+        reg[k, 0, 1] = x0
+        reg[k, 1, 0] = x0 + e0
+        reg[k, 1, 1] = x1 - e0
+        reg[k, 2, 0] = x1 + e1
+        reg[k, 2, 1] = x2 - e1
+        reg[k, 3, 0] = x2 + e2
+        reg[k, 3, 1] = x3 - e2
+        reg[k, 4, 0] = x3
+        reg[k, 4, 1] = min(x3 + mw, width)
+        if reject_periodic:
+            # five or more equal runs in a row (a grating, a chessboard): flag the run beyond
+            # each margin; its grey level decides (a bar's shade = periodic, see find_stacks)
+            tol = periodic_tolerance * b + 1.0
+            if i >= 2 and line[i - 2] == line[i] and abs(l[i - 1] - b) <= tol and abs(l[i - 2] - b) <= tol:
+                reg[k, 5, 0] = x[i - 2]
+                reg[k, 5, 1] = x[i - 2] + l[i - 2]
+            if i + 4 < n and line[i + 4] == line[i] and abs(l[i + 3] - b) <= tol and abs(l[i + 4] - b) <= tol:
+                reg[k, 6, 0] = x[i + 4]
+                reg[k, 6, 1] = x[i + 4] + l[i + 4]
+    return idx, xs, reg
 
 
 def scan_lines(image: np.ndarray, rows: np.ndarray, p: DetectorParams, window: int):
@@ -223,14 +280,25 @@ def triple_levels(lines: np.ndarray, tri: Triples) -> np.ndarray:
     ``(T, 7)``: left margin, bar, gap, bar, right margin (non-boundary pixels: up
     to 2 px at each end of a run are boundary, the thesis's 5-pixel edge
     transition; the margins are the ``max(1, b/4)`` pixels next to the outer edges),
-    then the runs flagged by the periodic test (NaN where none). One prefix sum
-    over the lines and one gather: a fixed number of numpy calls for any ``T``.
+    then the runs flagged by the periodic test (NaN where none).
     """
-    k, w = lines.shape
-    cs = np.zeros((k, w + 1), np.int32)
-    np.cumsum(lines, axis=1, dtype=np.int32, out=cs[:, 1:])
-    li = tri.line[:, None]
-    reg = tri.regions
-    cnt = reg[:, :, 1] - reg[:, :, 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (cs[li, reg[:, :, 1]] - cs[li, reg[:, :, 0]]) / cnt
+    return _levels(np.ascontiguousarray(lines), tri.line, tri.regions)
+
+
+@numba.njit(cache=True, nogil=True)
+def _levels(lines, line, regions):
+    """Mean of ``lines[line[t], a:b]`` over each ``(a, b)`` of ``regions`` (T, 7, 2); NaN if empty."""
+    t_n = line.size
+    out = np.empty((t_n, regions.shape[1]))
+    for t in range(t_n):
+        row = lines[line[t]]
+        for r in range(regions.shape[1]):
+            a, b = regions[t, r, 0], regions[t, r, 1]
+            if b <= a:
+                out[t, r] = np.nan
+                continue
+            acc = 0
+            for c in range(a, b):
+                acc += row[c]
+            out[t, r] = acc / (b - a)
+    return out

@@ -141,3 +141,17 @@ def test_short_rendered_loop(corridor):
     assert m["accepted"] >= 3
     assert m["wrong_associations"] == 0
     assert m["position_max_m"] < 0.03
+
+
+def test_turn_blur_noise_inflates_only_while_turning():
+    from agvsim.mission import _with_turn_blur
+    from agvsim.observe import SimObservation
+
+    obs = SimObservation(3.0, 0.1, 0.5, np.diag([1e-6, 1e-8, 1e-6]), "positive", "T01")
+    still = _with_turn_blur(obs, 0.0, (0.01, 0.0, 0.03))
+    np.testing.assert_allclose(still.R, obs.covariance)
+    turning = _with_turn_blur(obs, 0.5, (0.01, 0.0, 0.03))
+    np.testing.assert_allclose(np.diag(turning.R), [1e-6 + (0.01 * 0.5 * 3.0) ** 2, 1e-8, 1e-6 + (0.03 * 0.5) ** 2])
+    np.testing.assert_allclose(turning.z, [3.0, 0.1, 0.5])
+    with pytest.raises(ValueError):
+        MissionConfig(turn_blur_noise=(0.0, -1.0, 0.0))
