@@ -408,8 +408,8 @@ _INV_SQRT2PI = 1.0 / math.sqrt(2.0 * math.pi)
 _CLIP = 254.5
 #: starts of the joint fit: unclipped bright level (dark + f * (255 - dark)) and edge shift
 #: towards the bright side (px)
-_B_STARTS = (1.5, 2.5, 4.0)
-_E_STARTS = (0.0, 0.3, 0.6)
+_B_STARTS = (1.5, 3.0)
+_E_STARTS = (0.0, 0.4)
 #: smallest fitted blur sd (px) for which the clipped-erf edges replace the centroids
 _SIGMA_MIN = 0.3
 #: narrowest mean run (px) of a target for the clipped-erf fit
@@ -428,32 +428,43 @@ def _gint(z):
 
 
 @numba.njit(cache=True, nogil=True)
-def _step(j, e, s):
-    """Fraction ``F`` of pixel ``j`` beyond an edge at ``e`` (box pixels ``[j - 0.5, j + 0.5]``)
-    after a sampled Gaussian blur of sd ``s`` (px) on the pixel grid (taps -3..3, normalised),
-    and its derivatives ``dF/de``, ``dF/ds``."""
+def _kernel(s):
+    """Sampled Gaussian blur of sd ``s`` (px) on the pixel grid, taps -3..3, normalised:
+    weights ``w`` (7,) and their derivatives ``dw/ds`` (7,)."""
+    g = np.empty(7)
+    dg = np.empty(7)
     sg = 0.0
     sdg = 0.0
-    f = 0.0
-    fd = 0.0
-    de = 0.0
     for k in range(-3, 4):
-        g = math.exp(-0.5 * k * k / (s * s))
-        dg = g * k * k / (s * s * s)
-        c = min(max(j - k + 0.5 - e, 0.0), 1.0)
-        sg += g
-        sdg += dg
-        f += g * c
-        fd += dg * c
-        if abs(j - k - e) < 0.5:
-            de -= g
-    return f / sg, de / sg, (fd * sg - f * sdg) / (sg * sg)
+        g[k + 3] = math.exp(-0.5 * k * k / (s * s))
+        dg[k + 3] = g[k + 3] * k * k / (s * s * s)
+        sg += g[k + 3]
+        sdg += dg[k + 3]
+    w = g / sg
+    dw = (dg * sg - g * sdg) / (sg * sg)
+    return w, dw
 
 
 @numba.njit(cache=True, nogil=True)
-def _bar_model(prof, j0, lo, hi, p, positive, J, res):
+def _step(j, e, w, dw):
+    """Fraction ``F`` of pixel ``j`` beyond an edge at ``e`` (box pixels ``[j - 0.5, j + 0.5]``)
+    after the blur kernel ``w`` (:func:`_kernel`), and its derivatives ``dF/de``, ``dF/ds``."""
+    f = 0.0
+    ds = 0.0
+    de = 0.0
+    for k in range(-3, 4):
+        c = min(max(j - k + 0.5 - e, 0.0), 1.0)
+        f += w[k + 3] * c
+        ds += dw[k + 3] * c
+        if abs(j - k - e) < 0.5:
+            de -= w[k + 3]
+    return f, de, ds
+
+
+@numba.njit(cache=True, nogil=True)
+def _bar_model(prof, j0, idx, p, positive, J, res):
     """Residuals ``res`` (and Jacobian ``J``) of the clipped four-edge model over the pixels
-    ``lo..hi-1`` of the profile ``prof`` whose first pixel is at ``j0``.
+    ``idx`` (m,) of the profile ``prof`` whose first pixel is at ``j0``.
 
     ``p`` = (e0, e1, e2, e3, sigma, bright, dark): the brightness is
     ``dark + (bright - dark) * b(x)`` with ``b`` the blurred box-pixel fraction of bright
@@ -462,45 +473,51 @@ def _bar_model(prof, j0, lo, hi, p, positive, J, res):
     Returns the residual sum of squares.
     """
     rss = 0.0
-    s = p[4]
-    for i in range(lo, hi):
+    kw, kdw = _kernel(p[4])
+    for t in range(idx.size):
+        i = idx[t]
         j = j0 + i
         acc = 0.0
         for c in range(7):
-            J[i - lo, c] = 0.0
+            J[t, c] = 0.0
         dsum = 0.0
         for k in range(4):
-            f, de, ds = _step(j, p[k], s)
+            if j - p[k] > 4.5:  # wholly beyond the edge (taps reach 3 px)
+                f, de, ds = 1.0, 0.0, 0.0
+            elif p[k] - j > 4.5:
+                f, de, ds = 0.0, 0.0, 0.0
+            else:
+                f, de, ds = _step(j, p[k], kw, kdw)
             sg = 1.0 if k % 2 == 0 else -1.0  # F(e0) - F(e1) + F(e2) - F(e3): fraction inside the bars
             acc += sg * f
-            J[i - lo, k] = sg * de
+            J[t, k] = sg * de
             dsum += sg * ds
         if positive:
             b = 1.0 - acc
             for k in range(4):
-                J[i - lo, k] = -J[i - lo, k]
+                J[t, k] = -J[t, k]
             dsum = -dsum
         else:
             b = acc
         amp = p[5] - p[6]
         m = p[6] + amp * b
         for k in range(4):
-            J[i - lo, k] *= amp
-        J[i - lo, 4] = amp * dsum
-        J[i - lo, 5] = b
-        J[i - lo, 6] = 1.0 - b
+            J[t, k] *= amp
+        J[t, 4] = amp * dsum
+        J[t, 5] = b
+        J[t, 6] = 1.0 - b
         if m >= 255.0:
             if prof[i] >= _CLIP:
                 r = 0.0
                 for c in range(7):
-                    J[i - lo, c] = 0.0
+                    J[t, c] = 0.0
             else:
                 r = 255.0 - prof[i]
                 for c in range(7):
-                    J[i - lo, c] = 0.0
+                    J[t, c] = 0.0
         else:
             r = m - prof[i]
-        res[i - lo] = r
+        res[t] = r
         rss += r * r
     return rss
 
@@ -538,6 +555,12 @@ def _fit_bar_profile(image, rows, bounds, e_init, positive):
         pmin = min(pmin, prof[i])
     if pmax < _CLIP:
         return False, p
+    # the pixels within 5 px of an edge (the plateaus further in carry only the levels)
+    keep = np.zeros(n, np.bool_)
+    for k in range(4):
+        for i in range(max(int(e_init[k]) - a - 5, 0), min(int(e_init[k]) - a + 6, n)):
+            keep[i] = True
+    idx = np.nonzero(keep)[0]
     best = np.empty(7)
     best_cost = np.inf
     for start in range(len(_B_STARTS) * len(_E_STARTS)):
@@ -550,11 +573,12 @@ def _fit_bar_profile(image, rows, bounds, e_init, positive):
         p[4] = 0.5
         p[6] = pmin
         p[5] = pmin + _B_STARTS[start % len(_B_STARTS)] * (255.0 - pmin)
-        cost = _lm_bar(prof, a, n, p, positive)
+        cost = _lm_bar(prof, a, idx, p, positive, 6)
         if cost < best_cost:
             best_cost = cost
             best[:] = p
     p[:] = best
+    _lm_bar(prof, a, idx, p, positive, 30)
     # sharp edges: the clipped pixels hide where in them each edge lies, and the model
     # has nothing to add to the centroids (whose common shift the pose fit takes out)
     if p[4] < _SIGMA_MIN:
@@ -566,14 +590,17 @@ def _fit_bar_profile(image, rows, bounds, e_init, positive):
 
 
 @numba.njit(cache=True, nogil=True)
-def _lm_bar(prof, a, n, p, positive):
+def _lm_bar(prof, a, idx, p, positive, iterations):
     """Levenberg-Marquardt of :func:`_bar_model` from ``p`` (updated in place); returns the cost."""
+    n = idx.size
     J = np.empty((n, 7))
     res = np.empty(n)
     lam = 1e-3
-    cost = _bar_model(prof, a, 0, n, p, positive, J, res)
+    cost = _bar_model(prof, a, idx, p, positive, J, res)
     q = np.empty(7)
-    for it in range(30):
+    Jq = np.empty((n, 7))
+    rq = np.empty(n)
+    for it in range(iterations):
         A = J.T @ J
         g = J.T @ res
         for c in range(7):
@@ -583,9 +610,7 @@ def _lm_bar(prof, a, n, p, positive):
             q[c] = p[c] - step[c]
         q[4] = min(max(q[4], 0.05), 3.0)
         q[5] = max(q[5], 255.0)
-        Jq = np.empty((n, 7))
-        rq = np.empty(n)
-        cq = _bar_model(prof, a, 0, n, q, positive, Jq, rq)
+        cq = _bar_model(prof, a, idx, q, positive, Jq, rq)
         if cq < cost:
             conv = cost - cq < 1e-6 * (cost + 1e-9)
             p[:] = q
@@ -619,12 +644,13 @@ def _refine_clipped(image, fixed, start, hw_dark, hw_bright, sgn, vertical, s, b
     hi = min(hi, n_img - 1)
     e = start
     amp = bright - dark
+    kw, kdw = _kernel(s)
     for it in range(6):
         a11 = 0.0
         g1 = 0.0
         for j in range(lo, hi + 1):
             v = np.float64(image[j, fixed]) if vertical else np.float64(image[fixed, j])
-            f, de, ds = _step(j, e, s)
+            f, de, ds = _step(j, e, kw, kdw)
             b = f if sgn > 0 else 1.0 - f
             dm = amp * (de if sgn > 0 else -de)
             m = dark + amp * b
