@@ -11,7 +11,10 @@ Two detectors share the rough geometry:
   pixels the centroid of the differences of a blurred step is unbiased for
   any symmetric blur; clipping (saturation) and the truncation by nearby
   edges shift all edges towards their dark side by one common amount, which
-  the exact pose fit estimates (:mod:`localizer.pose`).
+  the exact pose fit estimates (:mod:`localizer.pose`). On saturated
+  (clipped) targets with some blur the edges are then re-measured by a
+  clipped, blurred-step model whose blur and levels are shared by all edges
+  of the target (:func:`_fit_bar_profile`, :func:`_refine_clipped`).
 
 Both return an :class:`EdgeMeasurements` in undistorted pixel coordinates.
 Coordinates follow :mod:`localizer.camera` (pixel centres at integers).
@@ -351,7 +354,12 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
     common ``delta`` (:mod:`localizer.pose`); what is left is a per-edge part that
     depends on the edge's pixel phase (up to about +-0.3 px for sharp saturated
     edges, where the clipped pixels hide where in them the edge lies), which the
-    covariance allows for.
+    covariance allows for. When the target is clipped and blurred (fitted blur
+    sd >= 0.3 px, mean run >= 8 px), the vertical edges are replaced by a joint
+    clipped-erf fit of the row-mean profile (:func:`_fit_bar_profile`: four edges,
+    one blur sd, one unclipped bright and one dark level) and each top/bottom
+    point by a position-only fit with that blur and those levels
+    (:func:`_refine_horizontal_clipped`), which removes most of that per-edge part.
 
     Vertical edges: on every stack row (but the first and last eighth) the
     differences ``f(x+1) - f(x)`` of an ``L = 11``-pixel window around each of the
@@ -654,9 +662,7 @@ def _refine_clipped(image, fixed, start, hw_dark, hw_bright, sgn, vertical, s, b
             b = f if sgn > 0 else 1.0 - f
             dm = amp * (de if sgn > 0 else -de)
             m = dark + amp * b
-            if m >= 255.0:
-                if v >= _CLIP:
-                    continue
+            if m >= 255.0:  # clipped model: no position information (observed clipped or not)
                 continue
             r = m - v
             a11 += dm * dm
