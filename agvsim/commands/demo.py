@@ -1,11 +1,14 @@
-"""``agvsim demo``: drive the default route of the default map and show how
-dead reckoning drifts, and what the camera sees.
+"""``agvsim demo``: drive the default route of the default map with the
+camera correcting the drifting odometry.
 
-The vehicle follows the route with pure pursuit steering on its *true* pose
-(the camera and the filter come later), with ``typical`` odometry. It prints
-a progress bar, a table of dead-reckoning error against distance, and writes
-a top-down picture, an error plot and a strip of rendered camera frames
-along the route with the targets the localizer found.
+The vehicle follows the route with pure pursuit steering on its *estimated*
+pose: ``typical`` odometry, a camera rendering frames at 4 Hz, the localizer
+measuring the targets in them and the EKF fusing both. It prints a progress
+bar and a table of dead-reckoning and estimate errors against distance, and
+writes a top-down picture (true, dead-reckoned and estimated trajectories),
+an error plot and a strip of camera frames with the targets the localizer
+found. ``--no-vision`` steers on the true pose instead and shows dead
+reckoning alone.
 """
 from __future__ import annotations
 
@@ -29,14 +32,18 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-vision", action="store_true",
+                   help="no camera or filter: steer on the true pose and show dead reckoning alone")
+    p.add_argument("--observations", default="rendered", choices=("rendered", "synthetic", "geometric"),
+                   help="what the camera reports (default: %(default)s, the renderer + localizer)")
     p.add_argument("--frames", type=int, default=8,
                    help="camera frames in the strip along the route, 0 for none (default: %(default)s)")
     add_json_flag(p)
     p.set_defaults(func=run)
 
 
-def drift_table(distance, error, heading_error, rows: int = 10) -> list[dict[str, float]]:
-    """Dead-reckoning error at ``rows`` evenly spaced distances (SI units)."""
+def drift_table(distance, error, heading_error, estimate_error=None, rows: int = 10) -> list[dict[str, float]]:
+    """Dead-reckoning (and estimate) error at ``rows`` evenly spaced distances (SI units)."""
     import numpy as np
 
     total = float(distance[-1]) if len(distance) else 0.0
@@ -44,17 +51,25 @@ def drift_table(distance, error, heading_error, rows: int = 10) -> list[dict[str
     for k in range(1, rows + 1):
         d = total * k / rows
         i = min(int(np.searchsorted(distance, d)), len(distance) - 1)
-        table.append({"distance_m": float(distance[i]), "position_error_m": float(error[i]),
-                      "error_share_of_distance": float(error[i] / max(distance[i], 1e-9)),
-                      "heading_error_rad": float(heading_error[i])})
+        row = {"distance_m": float(distance[i]), "position_error_m": float(error[i]),
+               "error_share_of_distance": float(error[i] / max(distance[i], 1e-9)),
+               "heading_error_rad": float(heading_error[i])}
+        if estimate_error is not None:
+            row["estimate_error_m"] = float(estimate_error[i])
+        table.append(row)
     return table
 
 
 def format_table(table: list[dict[str, float]]) -> str:
-    lines = [f"{'distance (m)':>13} {'position error (m)':>19} {'% of distance':>14} {'heading error (deg)':>20}"]
+    with_estimate = "estimate_error_m" in table[0]
+    head = f"{'distance (m)':>13} {'dead reckoning (m)':>19} {'% of distance':>14} {'heading error (deg)':>20}"
+    lines = [head + (f" {'EKF estimate (m)':>17}" if with_estimate else "")]
     for row in table:
-        lines.append(f"{row['distance_m']:13.1f} {row['position_error_m']:19.3f} "
-                     f"{100 * row['error_share_of_distance']:14.2f} {math.degrees(row['heading_error_rad']):20.2f}")
+        line = (f"{row['distance_m']:13.1f} {row['position_error_m']:19.3f} "
+                f"{100 * row['error_share_of_distance']:14.2f} {math.degrees(row['heading_error_rad']):20.2f}")
+        if with_estimate:
+            line += f" {row['estimate_error_m']:17.3f}"
+        lines.append(line)
     return "\n".join(lines)
 
 
@@ -89,32 +104,54 @@ def run(args) -> int:
             last[0] += step
 
     started = time.perf_counter()
-    run_log = drive_route(world_map, rng, route=args.route, config=config, laps=args.laps, progress=progress)
+    estimate = estimate_error = None
+    if args.no_vision:
+        run_log = drive_route(world_map, rng, route=args.route, config=config, laps=args.laps, progress=progress)
+    else:
+        from agvsim.mission import MissionConfig, run_mission
+        from agvsim.observe import make_source
+
+        mission = MissionConfig(route=args.route, laps=args.laps, sim=config)
+        source = make_source(args.observations, world_map, mission.vision_config)
+        run_log = run_mission(world_map, source, rng, mission, progress=progress)
+        estimate = run_log.estimate
+        estimate_error = np.linalg.norm(estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
     wall = time.perf_counter() - started
     bar.close()
     if len(run_log.time) == 0:
         raise ValueError("the run produced no steps")
-    error = run_log.odometry_error()
-    heading = run_log.odometry_heading_error()
-    table = drift_table(run_log.distance, error, heading)
+    error = np.linalg.norm(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2], axis=1)
+    dth = run_log.odometry_pose[:, 2] - run_log.true_pose[:, 2]
+    heading = np.arctan2(np.sin(dth), np.cos(dth))
+    table = drift_table(run_log.distance, error, heading, estimate_error)
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     view = TopDownView(world_map)
-    image = view.render((Trajectory(run_log.true_pose, (30, 150, 40), "true"),
-                         Trajectory(run_log.odometry_pose, (210, 40, 40), "dead reckoning")),
-                        vehicle_pose=tuple(run_log.true_pose[-1]))
+    trajectories = [Trajectory(run_log.true_pose, (30, 150, 40), "true"),
+                    Trajectory(run_log.odometry_pose, (210, 40, 40), "dead reckoning")]
+    ellipses = ()
+    series = {f"dead reckoning ({args.odometry})": error}
+    bound = None
+    if estimate is not None:
+        trajectories.append(Trajectory(estimate, (40, 90, 220), "EKF estimate"))
+        every = max(1, len(estimate) // 40)
+        ellipses = tuple((estimate[i, :2], 400.0 * run_log.covariance[i, :2, :2], (40, 90, 220))
+                         for i in range(0, len(estimate), every))
+        series["EKF estimate"] = estimate_error
+        bound = 2.0 * np.sqrt(np.clip(run_log.covariance[:, 0, 0] + run_log.covariance[:, 1, 1], 0, None))
+    image = view.render(tuple(trajectories), vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses)
     topdown = TopDownView.save_png(image, out / "topdown.png")
-    plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance,
-                             {f"dead reckoning ({args.odometry})": error},
-                             title=f"{world_map.name}: dead-reckoning error, seed {args.seed}")
+    plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance, series,
+                             title=f"{world_map.name}: position error, {args.odometry} odometry, seed {args.seed}",
+                             bound=bound)
     files = {"topdown": str(topdown), "error_plot": str(plot)}
     strip = None
     if args.frames > 0:
-        from agvsim.render.mount import CameraMount
+        from agvsim.observe import DEFAULT_MOUNT
         from agvsim.render.strip import route_poses, save_camera_strip
 
-        mount = CameraMount.side_looking("right")  # the route circles counter-clockwise: targets on the right
+        mount = DEFAULT_MOUNT  # the closed loop's camera: 45° right of the heading
         strip = save_camera_strip(world_map, route_poses(world_map, args.frames, route=args.route, mount=mount),
                                   out / "camera_strip.png", mount=mount, rng=rng)
         files["camera_strip"] = str(strip["path"])
@@ -127,18 +164,33 @@ def run(args) -> int:
         "max_position_error_m": float(error.max()),
         "final_heading_error_rad": float(heading[-1]),
         "collisions": run_log.collisions,
+        "vision": not args.no_vision,
         "stations_reached": len(run_log.arrivals),
         "table": table,
         "files": files,
     }
     if strip is not None:
         result["camera_frames"] = strip["frames"]
+    if estimate_error is not None:
+        result.update({
+            "estimate_rmse_m": float(np.sqrt(np.mean(estimate_error ** 2))),
+            "estimate_max_m": float(estimate_error.max()),
+            "final_estimate_error_m": float(estimate_error[-1]),
+            "frames": len(run_log.frames),
+            "frames_with_accepted_observation": float(np.mean([f.accepted > 0 for f in run_log.frames]))
+            if run_log.frames else 0.0,
+        })
     if args.json:
         emit_json(result)
         return 0
     print(f"Drove {result['distance_m']:.1f} m of route {args.route!r} on {world_map.name!r} in "
           f"{result['simulated_time_s']:.0f} s simulated ({wall:.1f} s wall clock), "
           f"{result['stations_reached']} stations, {run_log.collisions} collisions.")
+    if estimate_error is not None:
+        print(f"Camera: {result['frames']} frames ({args.observations}), "
+              f"{100 * result['frames_with_accepted_observation']:.0f} % with a target fused; "
+              f"EKF estimate error RMSE {100 * result['estimate_rmse_m']:.1f} cm, "
+              f"max {100 * result['estimate_max_m']:.1f} cm (ellipses: 2σ magnified 20x).")
     print(f"Dead reckoning ({args.odometry}) against truth:")
     print(format_table(table))
     print(f"Wrote the top-down view to {topdown}")
