@@ -350,9 +350,15 @@ class RenderedSource:
         image, truth = renderer.render(tuple(float(v) for v in true_pose), cond, rng)
         self.last_frame = image
         self.last_truth = truth
+        # candidates for labelling detections with the target really seen (evaluation only): the
+        # renderer's visible targets, plus facing, unoccluded ones whose printed margin is cut by
+        # the image border (the localizer still finds their bars there)
+        half = self.vision.view_limits().half_fov + 0.05
         visible = []
         for i, t in enumerate(truth.targets):
-            if t.visible:
+            partly = (t.facing and t.occluded_fraction < 0.5 and math.isfinite(t.distance) and t.distance > 0
+                      and abs(t.beta) <= half)
+            if t.visible or partly:
                 visible.append((i, TargetPose(t.distance, t.beta, t.alpha, t.height if math.isfinite(t.height) else 0.0)))
         spec = self.map.targets[0].spec if self.map.targets else TargetSpec()
         out = []

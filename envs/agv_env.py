@@ -221,10 +221,21 @@ class AGVEnv(gym.Env):
                         Trajectory(np.array(self._paths["estimate"]), (40, 90, 220), "estimate"))
         cov = ep.covariance[:2, :2]
         img = self._view.render(trajectories, vehicle_pose=tuple(ep.true_pose),
-                                ellipses=((ep.believed_pose[:2], cov, (40, 90, 220)),))
+                                ellipses=((ep.believed_pose[:2], cov, (40, 90, 220)),),
+                                fov=self._camera_fov(ep.true_pose))
         if self._frame is not None:
             img = _inset(img, self._frame)
         return img
+
+    def _camera_fov(self, pose: np.ndarray):
+        """((x, y, yaw) of the camera in the map, half horizontal FOV rad, range m) for drawing."""
+        mount = self.vision.mount2d
+        x, y, th = (float(v) for v in pose)
+        c, s = math.cos(th), math.sin(th)
+        cx = x + c * mount.x - s * mount.y
+        cy = y + s * mount.x + c * mount.y
+        cam = self.vision.camera
+        return (cx, cy, th + mount.yaw), math.atan(0.5 * cam.width / cam.fx), self.vision.max_range
 
     def close(self) -> None:
         self._episode = None
