@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agvsim.simulation import SimConfig, Simulation, StepResult
-from localizer.filter import FrameResult, PoseEKF
+from localizer.filter import FrameResult, Measurement, PoseEKF
 
 _EPS = 1e-9
 
@@ -69,30 +69,17 @@ class LoopStep:
         return sum(len(f.observations) - f.result.accepted for f in self.fused)
 
 
-def with_turn_blur(obs, yaw_rate: float, k: tuple[float, float, float]):
-    """``obs`` with its covariance inflated for motion blur while turning at
-    ``yaw_rate`` (rad/s): σ_d = k_d |ω| d, σ_β = k_β |ω|, σ_α = k_α |ω| added
-    in quadrature (see :class:`agvsim.mission.MissionConfig.turn_blur_noise`)."""
+def with_turn_blur(obs, yaw_rate: float, k: tuple[float, float, float]) -> Measurement:
+    """The observation as a filter :class:`~localizer.filter.Measurement` with
+    its covariance inflated for motion blur while turning at ``yaw_rate``
+    (rad/s): σ_d = k_d |ω| d, σ_β = k_β |ω|, σ_α = k_α |ω| added in quadrature
+    (see :attr:`agvsim.mission.MissionConfig.turn_blur_noise`)."""
+    m = Measurement.from_observation(obs)
     w = abs(yaw_rate)
-    if w == 0.0 or not any(k):
-        return obs
-    from dataclasses import replace
-
-    extra = np.array([k[0] * w * float(obs.distance), k[1] * w, k[2] * w])
-    cov = np.asarray(obs.covariance, dtype=float) + np.diag(extra ** 2)
-    try:
-        return replace(obs, covariance=cov)
-    except TypeError:  # not a dataclass: a light copy with the new covariance
-        return _Inflated(obs, cov)
-
-
-class _Inflated:
-    def __init__(self, obs, cov: np.ndarray) -> None:
-        self._obs = obs
-        self.covariance = cov
-
-    def __getattr__(self, name: str):
-        return getattr(self._obs, name)
+    if w > 0 and any(k):
+        extra = np.array([k[0] * w * m.z[0], k[1] * w, k[2] * w])
+        m = Measurement(m.z, m.R + np.diag(extra ** 2), m.polarity)
+    return m
 
 
 class ClosedLoop:
@@ -111,7 +98,7 @@ class ClosedLoop:
 
     def __init__(self, sim: Simulation, ekf: PoseEKF, source, camera_rng: np.random.Generator,
                  camera_rate: float = 4.0, latency: float = 0.25,
-                 turn_blur_noise: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 turn_blur_noise: tuple[float, float, float] = (0.01, 0.0, 0.03)) -> None:
         if not (math.isfinite(camera_rate) and camera_rate > 0):
             raise ValueError(f"camera_rate must be > 0 Hz, got {camera_rate!r}")
         if not (math.isfinite(latency) and latency >= 0):

@@ -17,16 +17,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
+from agvsim.closed_loop import ClosedLoop, FusedFrame
 from agvsim.control.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 from agvsim.observe import VisionConfig, targets_from_map
 from agvsim.simulation import SimConfig, Simulation
-from localizer.filter import FilterConfig, Measurement, OdometryNoise, PoseEKF
+from localizer.filter import FilterConfig, OdometryNoise, PoseEKF
 
 __all__ = ["FrameRecord", "MissionConfig", "MissionLog", "ObservationRecord", "filter_config_for",
            "odometry_noise_for", "run_mission"]
@@ -192,14 +192,18 @@ class MissionLog:
     timings: dict
 
 
-def _with_turn_blur(obs, yaw_rate: float, k: tuple[float, float, float]) -> Measurement:
-    """The observation as a filter :class:`Measurement` with the turn-blur noise added."""
-    m = Measurement.from_observation(obs)
-    w = abs(yaw_rate)
-    if w > 0 and any(k):
-        extra = np.array([k[0] * w * m.z[0], k[1] * w, k[2] * w])
-        m = Measurement(m.z, m.R + np.diag(extra ** 2), m.polarity)
-    return m
+def _frame_record(f: FusedFrame) -> FrameRecord:
+    """A fused frame with its observations' association, for the log."""
+    res = f.result
+    assoc = {a.observation: a for a in res.associations}
+    recs = []
+    for k, o in enumerate(f.observations):
+        a = assoc.get(k)
+        recs.append(ObservationRecord(float(o.distance), float(o.beta), float(o.alpha), str(o.polarity),
+                                      getattr(o, "truth_id", None), a.status if a else "lost",
+                                      a.target_id if a else "", float(a.d2) if a else math.inf))
+    return FrameRecord(f.capture_time, f.fuse_time, f.step, tuple(recs), res.accepted, res.nis,
+                       f.observe_ms, f.filter_ms, res.relocalized)
 
 
 def run_mission(world_map, source, rng: np.random.Generator, config: MissionConfig = MissionConfig(),
@@ -236,36 +240,16 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
     if max_time is None:
         max_time = 3.0 * pursuit.end_s / max(config.follower.cruise_speed, 0.1) + 60.0
     n_max = int(math.ceil(max_time * sc.control_rate))
-    period = 1.0 / config.camera_rate
-    next_frame = period
-    eps = 1e-9
-    in_flight: deque = deque()  # (ready time, capture time, step, observations, observe_ms)
+    loop = ClosedLoop(sim, ekf, source if config.vision else None, cam_rng, camera_rate=config.camera_rate,
+                      latency=config.latency, turn_blur_noise=config.turn_blur_noise)
     rows_t, rows_d, truth, odo, est, cov, cmds, lost, step_ms = [], [], [], [], [], [], [], [], []
     frames: list[FrameRecord] = []
     arrivals: list[tuple[str, float, float, float]] = []
     station_xy = {s.id: s.position for s in world_map.stations}
     collisions = 0
-    t_sim = t_obs = t_filter = 0.0
     started = time.perf_counter()
 
-    def fuse(item, now: float) -> None:
-        nonlocal t_filter
-        ready, t_cap, step, obs, obs_ms, yaw_rate = item
-        t0 = time.perf_counter()
-        res = ekf.process_frame(t_cap, [_with_turn_blur(o, yaw_rate, config.turn_blur_noise) for o in obs])
-        ms = (time.perf_counter() - t0) * 1e3
-        t_filter += ms / 1e3
-        recs = []
-        assoc = {a.observation: a for a in res.associations}
-        for k, o in enumerate(obs):
-            a = assoc.get(k)
-            recs.append(ObservationRecord(float(o.distance), float(o.beta), float(o.alpha), str(o.polarity),
-                                          getattr(o, "truth_id", None), a.status if a else "lost",
-                                          a.target_id if a else "", float(a.d2) if a else math.inf))
-        frames.append(FrameRecord(t_cap, now, step, tuple(recs), res.accepted, res.nis, obs_ms, ms,
-                                  res.relocalized))
-
-    for step in range(n_max):
+    for _ in range(n_max):
         t_step = time.perf_counter()
         pose_est = ekf.pose()
         n_arr = len(pursuit.arrivals)
@@ -276,35 +260,10 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
                              float(np.linalg.norm(true_xy - pose_est[:2]))))
         if pursuit.finished:
             break
-        t0 = time.perf_counter()
-        result = sim.step(v, w)
-        t_sim += time.perf_counter() - t0
-        collisions += int(result.collided)
-        now = sim.time
-        inc = result.odometry
-        ekf.add_odometry(now, inc.ds, inc.dtheta)
-        while in_flight and in_flight[0][0] <= now + eps:
-            fuse(in_flight.popleft(), now)
-        if now >= next_frame - eps:
-            while next_frame <= now + eps:
-                next_frame += period
-            if config.vision:
-                t0 = time.perf_counter()
-                if hasattr(source, "velocity"):
-                    source.velocity = sc.vehicle.clip_command(v, w)  # motion blur during the exposure
-                obs = source.observe(sim.true_pose, cam_rng)
-                obs_ms = (time.perf_counter() - t0) * 1e3
-                t_obs += obs_ms / 1e3
-                item = (now + config.latency, now, step, obs, obs_ms, inc.dtheta / sc.control_dt)
-                if config.latency <= eps:
-                    fuse(item, now)
-                else:
-                    in_flight.append(item)
-            elif not in_flight:
-                t0 = time.perf_counter()
-                ekf.flush(now)
-                t_filter += time.perf_counter() - t0
-        rows_t.append(now)
+        step = loop.step(v, w)
+        collisions += int(step.sim.collided)
+        frames.extend(_frame_record(f) for f in step.fused)
+        rows_t.append(sim.time)
         rows_d.append(sim.distance)
         truth.append(sim.true_pose)
         odo.append(sim.odometry_pose)
@@ -315,6 +274,7 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
         step_ms.append((time.perf_counter() - t_step) * 1e3)
         if progress is not None:
             progress(pursuit.progress)
+    t_sim, t_obs, t_filter = (loop.timings[k] for k in ("sim", "observe", "filter"))
     total = time.perf_counter() - started
     n = len(rows_t)
     return MissionLog(

@@ -144,7 +144,7 @@ def test_short_rendered_loop(corridor):
 
 
 def test_turn_blur_noise_inflates_only_while_turning():
-    from agvsim.mission import _with_turn_blur
+    from agvsim.closed_loop import with_turn_blur as _with_turn_blur
     from agvsim.observe import SimObservation
 
     obs = SimObservation(3.0, 0.1, 0.5, np.diag([1e-6, 1e-8, 1e-6]), "positive", "T01")
