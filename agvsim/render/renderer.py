@@ -26,8 +26,10 @@ Pipeline per frame:
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -154,6 +156,9 @@ class CameraRenderer:
 
         pyrender, _ = import_pyrender()
         scene = self.context.shared_scene(self.map, lambda: self._make_scene(pyrender))
+        # the reflectance textures now live in the pyrender scene (and, after the
+        # first frame, only in the GL context): drop this renderer's float copies
+        self.scene = dataclasses.replace(self.scene, textures=MappingProxyType({}))
         s = self.supersample
         c = self.camera
         cam = pyrender.IntrinsicsCamera(fx=c.fx * s, fy=c.fy * s, cx=(c.cx + 0.5) * s, cy=(c.cy + 0.5) * s,
@@ -204,6 +209,7 @@ class CameraRenderer:
         scene.main_camera_node = node
         scene.set_pose(node, cam_pose.gl_pose())
         color, depth = off.render(scene, flags=pyrender.RenderFlags.FLAT)
+        _release_texture_sources(scene)
         albedo = color[..., 0].astype(np.float32) * np.float32(1.0 / 255.0)
         if s > 1:
             albedo = cv2.resize(albedo, (self.camera.width, self.camera.height), interpolation=cv2.INTER_AREA)
@@ -356,3 +362,19 @@ def _normals_from_points(pts: np.ndarray, depth: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
     n = n / np.maximum(norm, 1e-12)
     return n.astype(np.float32)
+
+
+def _release_texture_sources(scene) -> None:
+    """Drop the CPU copies of textures already uploaded to the GL context.
+
+    pyrender keeps each texture's source array after upload; the GL
+    context (one per process, never recreated) holds its own copy, so the
+    source is dead weight (about 25 MB for ``plant_floor``). Textures not yet
+    uploaded (no GL texture id) keep theirs.
+    """
+    for mesh in scene.meshes:
+        for prim in mesh.primitives:
+            tex = getattr(prim.material, "baseColorTexture", None)
+            if tex is not None and tex.source is not None and getattr(tex, "_texid", None) is not None:
+                tex.source = None
+
