@@ -22,7 +22,7 @@ DEFAULT_MAP = "plant_floor"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="drive the default route and report dead-reckoning drift",
+    p = sub.add_parser("demo", help="drive the default route, camera and EKF correcting dead-reckoning drift",
                        description=__doc__.split("\n\n")[0])
     p.add_argument("--map", default=DEFAULT_MAP, help="map name or YAML path (default: %(default)s)")
     p.add_argument("--route", default="default", help="route name (default: %(default)s)")
