@@ -8,15 +8,15 @@ measured, and what happened (contacts); ground truth is kept apart.
 
 Localization modes:
     ``truth``     the believed pose is the true pose (covariance zero);
-    ``odometry``  dead reckoning, with its covariance propagated by the
-                  odometry motion model;
+    ``odometry``  dead reckoning, with its covariance from the filter's
+                  odometry motion model (:class:`localizer.filter.OdometryAccumulator`);
     ``ekf``       dead reckoning corrected by camera observations of the
                   wall targets (the closed loop of :mod:`agvsim.mission`).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,45 +55,6 @@ def wrap_angle(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
-@dataclass
-class _OdometryCovariance:
-    """Covariance of dead reckoning propagated with the per-wheel noise
-    model of :class:`agvsim.vehicle.encoders.OdometryErrorModel`: each wheel's
-    arc s has variance k²|s| (k = ``wheel_noise``, m^(1/2)).
-
-    For an increment (Δs, Δθ) from wheel arcs (s_L, s_R) with Δs = (s_L+s_R)/2,
-    Δθ = (s_R−s_L)/b, the pose Jacobians are (heading φ = θ + Δθ/2)::
-
-        F = [[1, 0, -Δs sin φ], [0, 1, Δs cos φ], [0, 0, 1]]
-        G = [[cos φ/2 + Δs sin φ/(2b), cos φ/2 - Δs sin φ/(2b)],
-             [sin φ/2 - Δs cos φ/(2b), sin φ/2 + Δs cos φ/(2b)],
-             [-1/b, 1/b]]                       (columns: s_L, s_R)
-
-    and P ← F P Fᵀ + G diag(k²|s_L|, k²|s_R|) Gᵀ. A floor of ``min_noise``
-    keeps the covariance honest when the preset has no random error (it
-    cannot see systematic errors at all).
-    """
-
-    track: float  # m, nominal wheelbase
-    wheel_noise: float  # m^(1/2)
-    cov: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
-    min_noise: float = 1e-3  # m^(1/2)
-
-    def predict(self, theta: float, ds: float, dtheta: float) -> None:
-        b = self.track
-        k2 = max(self.wheel_noise, self.min_noise) ** 2
-        s_l = ds - 0.5 * dtheta * b
-        s_r = ds + 0.5 * dtheta * b
-        phi = theta - 0.5 * dtheta  # theta is the heading after the increment
-        c, s = math.cos(phi), math.sin(phi)
-        F = np.array([[1.0, 0.0, -ds * s], [0.0, 1.0, ds * c], [0.0, 0.0, 1.0]])
-        G = np.array([[0.5 * c + ds * s / (2 * b), 0.5 * c - ds * s / (2 * b)],
-                      [0.5 * s - ds * c / (2 * b), 0.5 * s + ds * c / (2 * b)],
-                      [-1.0 / b, 1.0 / b]])
-        Q = np.diag([k2 * abs(s_l), k2 * abs(s_r)])
-        self.cov = F @ self.cov @ F.T + G @ Q @ G.T
-
-
 class Episode:
     """A vehicle on a map, stepped at the control rate.
 
@@ -123,7 +84,8 @@ class Episode:
                  capture_frames: bool = False) -> None:
         if localization not in LOCALIZATION_MODES:
             raise ValueError(f"localization must be one of {LOCALIZATION_MODES}, got {localization!r}")
-        from agvsim.mission import filter_config_for
+        from agvsim.mission import filter_config_for, odometry_noise_for
+        from localizer.filter import OdometryAccumulator
         from agvsim.observe import VisionConfig, make_source, targets_from_map
         from localizer.filter import PoseEKF
 
@@ -132,7 +94,9 @@ class Episode:
         self.localization = localization
         sim_rng, cam_rng = rng.spawn(2)
         self.sim = Simulation(world_map, start_pose, config, sim_rng)
-        self._cov = _OdometryCovariance(config.vehicle.track_width, config.odometry.wheel_noise)
+        # dead reckoning's covariance: the filter's motion model accumulated from the (known) start
+        self._start = np.asarray(start_pose, dtype=float)
+        self._odometry_motion = OdometryAccumulator(odometry_noise_for(config))
         vision = vision if vision is not None else VisionConfig()
         self.vision = vision
         source = None
@@ -182,7 +146,11 @@ class Episode:
         if self.localization == "truth":
             return np.zeros((3, 3))
         if self.localization == "odometry":
-            return self._cov.cov.copy()
+            from localizer.filter import compose_jacobians
+
+            acc = self._odometry_motion
+            _, G = compose_jacobians(self._start, acc.u)
+            return G @ acc.Q @ G.T
         return self.loop.ekf.covariance()
 
     @property
@@ -194,7 +162,7 @@ class Episode:
         """Apply (v m/s, ω rad/s) for one control step."""
         loop_step = self.loop.step(v, omega)
         inc = loop_step.sim.odometry
-        self._cov.predict(inc.pose[2], inc.ds, inc.dtheta)
+        self._odometry_motion.add(inc.ds, inc.dtheta)
         dt = self.config.control_dt
         half = 0.5 * self.config.vehicle.track_width
         wheels = np.array([(inc.ds - inc.dtheta * half) / dt, (inc.ds + inc.dtheta * half) / dt])
