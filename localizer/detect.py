@@ -1,6 +1,7 @@
 """``detect_targets``: the whole pipeline of thesis Fig. 4.6 on one frame."""
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
@@ -11,6 +12,7 @@ from localizer.camera import Camera
 from localizer.edges import subpixel_edges, thesis_edges
 from localizer.observation import ImageMeasurements, TargetObservation
 from localizer.params import METHODS, DetectionStats, DetectorParams
+from localizer.photometric import refine_pose
 from localizer.pose import exact_pose, thesis_pose
 from localizer.recognize import find_stacks
 from localizer.target import TargetSpec
@@ -112,10 +114,32 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
     est = exact_pose(m, camera, target, v.positive, floor)
+    if (v.bright >= 250.0 and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance)
+            and min(m.bar_heights.tolist()) < p.photometric_max_rows):
+        est = _photometric(img, camera, target, v, est)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and np.all(np.isfinite(est.covariance))):
         return None
     return est
+
+
+def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est):
+    """The pose of a clipped target refined on its pixels (:mod:`localizer.photometric`).
+
+    The edge-based covariance is kept: the censored pixels make the fit's own normal
+    matrix blind to the directions in which clipped edges can slide, and the edge-based one
+    (with its per-edge floor for clipped pixels) is the conservative statement."""
+    alt = [a for a in est.alpha_candidates if abs(a - est.alpha) > 0.01]
+    r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive), float(v.dark),
+                    alt_alpha=alt[0] if alt else None)
+    if r is None:
+        return est
+    q = r[0]
+    X, Z, alpha, Y = (float(x) for x in q[:4])
+    if not (Z > 0 and abs(alpha) < math.radians(89.0)):
+        return est
+    return dataclasses.replace(est, distance=math.hypot(X, Z), beta=math.atan2(X, Z), alpha=alpha, z=Z, x=X,
+                               height=Y)
 
 
 def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,

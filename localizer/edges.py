@@ -674,7 +674,7 @@ def _refine_clipped(image, fixed, start, hw_dark, hw_bright, sgn, vertical, s, b
         e -= stp
         if abs(stp) < 1e-4:
             break
-    if abs(e - start) > 1.0:
+    if abs(e - start) > 1.75:
         return start
     return e
 

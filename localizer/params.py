@@ -34,7 +34,7 @@ class DetectorParams:
     min_rows: int | None = None  # thesis 15 scan lines at 480 rows
     max_row_gap: int = 1  # rows a stack may miss and stay connected (thesis: 0; 1 survives noise)
     aspect_tolerance: float = 0.35  # relative slack on the height/width ratio
-    max_alpha: float = math.radians(75.0)  # rad, largest |alpha| the aspect test allows
+    max_alpha: float = math.radians(80.0)  # rad, largest |alpha| the aspect test allows (70 deg at 1 m looks like ~76 deg)
     uniformity: float = 20.0  # grey levels: max spread of non-boundary pixels in a segment
     min_contrast: float = 100.0  # grey levels between adjacent segments (thesis)
     min_contrast_ratio: float = 0.5  # or: dark mean <= (1 - ratio) * bright mean (dim light)
@@ -43,6 +43,10 @@ class DetectorParams:
     edge_window: int = 9  # px, thesis neighbourhood of a rough edge
     # --- exact pose covariance
     edge_sigma_floor: float = 0.05  # px, model error added to every averaged edge position
+    # --- saturated targets (localizer.photometric): the pose of a clipped target whose shorter
+    # bar is under this many rows is refined on the target's pixels (whole-target clipped model,
+    # ~2-3 ms per such target); taller targets keep the edge-based pose; 0 turns it off
+    photometric_max_rows: float = 48.0
     # --- misc
     max_targets: int = 32  # most targets reported per frame
     max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)

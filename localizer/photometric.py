@@ -1,0 +1,343 @@
+"""Whole-target photometric pose refinement for clipped (saturated) targets.
+
+On a saturated frame the bright side of every edge is clipped at 255, so an edge
+measured on its own is known only to lie somewhere inside its clipped pixel (up to
+~0.6 px for sharp edges: the edge-based pose then carries 2-3 % distance error on
+targets ~20 rows tall). The pixels still hold more than the edges taken one at a
+time: every edge of the target is tied to the others by the pose, all share one
+blur and one pair of grey levels, and every unclipped transition pixel gives its
+edge's exact coverage once the (unseen, clipped) bright level is known. This module
+fits that whole model to the pixels of the target at once:
+
+    grey(c, r) = dark + (bright - dark) * b(c, r), observed through min(., 255)
+
+with ``b`` the blurred box-pixel fraction of the bright paint at column ``c``, row
+``r``: ``1 - bars`` for a positive target (black bars on white), ``bars`` for a
+negative one, where ``bars(c, r) = (Fx1(c) + Fx2(c)) * Fy(c, r)``: ``Fx`` the
+fractions of the pixel between each bar's two vertical edges, ``Fy`` the fraction
+between the top and bottom lines of the target at that column, both blurred by one
+sampled Gaussian of sd ``sigma`` on the pixel grid (:func:`localizer.edges._step`).
+The geometry is :func:`localizer.pose._model`'s: the target centre at ``(X, Y, Z)`` in the
+camera frame (m), orientation ``alpha`` (rad, thesis sign), and a point at target
+abscissa ``u`` imaging at ``x = cx + fx (X + u cos a) / (Z - u sin a)``; the tops and
+bottoms are the lines ``y = cy + fy (Y -+ H/2) / z(c)`` with ``z(c)`` the range where
+the ray of column ``c`` meets the target plane.
+
+Clipped observations are censored: a pixel seen at 255 costs nothing while the model
+is at or above 255 and ``255 - model`` below it; an unclipped pixel costs
+``model - grey`` with the unclipped model. Seven unknowns (X, Z, alpha, Y, dark,
+bright, sigma) by Levenberg-Marquardt from the edge-based pose. Only the pixels of
+the printed target (bars, gap and half of the margin, which is what separates a
+target from the background behind it) enter the fit.
+
+Lens distortion is not modelled: the refinement applies to undistorted cameras only.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from localizer.edges import _CLIP, _kernel, _step
+
+#: the fraction of the printed margin (from the bars outwards) that enters the fit
+MARGIN_SHARE = 0.5
+#: smallest blur sd of the model (px)
+SIGMA_MIN = 0.2
+#: LM iterations
+ITERATIONS = 30
+#: starts of the fit: the edge-based pose scaled along its line of sight, and turned (rad)
+_SCALES = (1.0, 0.985, 1.015, 0.97, 1.03)
+_TURN = math.radians(12.0)
+_START_ITERATIONS = 6
+_ALPHA_MAX = math.radians(80.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _columns(p, cols, fx, fy, cx, cy, b, H, kw, kdw, fxb, dfxb, ylin, dylin):
+    """Per column ``cols`` (n,) at parameters ``p``: the bars' fraction ``fxb`` (n,) of the
+    column's pixels and its derivatives ``dfxb`` (n, 5) over (X, Z, alpha, Y, sigma); the
+    top and bottom lines ``ylin`` (n, 2) (px) and their derivatives ``dylin`` (n, 2, 4) over
+    (X, Z, alpha, Y)."""
+    X, Z, a, Y = p[0], p[1], p[2], p[3]
+    c, s = math.cos(a), math.sin(a)
+    xe = np.empty(4)
+    dxe = np.empty((4, 3))
+    for k in range(4):
+        u = (k - 1.5) * b
+        N = X + u * c
+        iM = 1.0 / (Z - u * s)
+        q = N * iM
+        xe[k] = cx + fx * q
+        dxe[k, 0] = fx * iM
+        dxe[k, 1] = -fx * q * iM
+        dxe[k, 2] = fx * u * (N * c - s / iM) * iM * iM
+    D = Z * c + X * s
+    iD = 1.0 / D
+    dD = X * c - Z * s
+    for i in range(cols.size):
+        j = cols[i]
+        f = 0.0
+        for m in range(5):
+            dfxb[i, m] = 0.0
+        for k in range(4):
+            if j - xe[k] > 4.5:
+                continue_f = 1.0
+                de = 0.0
+                ds = 0.0
+            elif xe[k] - j > 4.5:
+                continue_f = 0.0
+                de = 0.0
+                ds = 0.0
+            else:
+                continue_f, de, ds = _step(j, xe[k], kw, kdw)
+            sg = 1.0 if k % 2 == 0 else -1.0
+            f += sg * continue_f
+            for m in range(3):
+                dfxb[i, m] += sg * de * dxe[k, m]
+            dfxb[i, 4] += sg * ds
+        fxb[i] = f
+        t = (j - cx) / fx
+        g = c + t * s
+        q = g * iD  # 1 / z at this column
+        dq_dx = -g * s * iD * iD
+        dq_dz = -g * c * iD * iD
+        dq_da = ((t * c - s) * D - g * dD) * iD * iD
+        for side in range(2):
+            yv = Y - 0.5 * H if side == 0 else Y + 0.5 * H
+            ylin[i, side] = cy + fy * yv * q
+            dylin[i, side, 0] = fy * yv * dq_dx
+            dylin[i, side, 1] = fy * yv * dq_dz
+            dylin[i, side, 2] = fy * yv * dq_da
+            dylin[i, side, 3] = fy * q
+
+
+@numba.njit(cache=True, nogil=True)
+def _edge(r, e, kw, kdw):
+    if r - e > 4.5:
+        return 1.0, 0.0, 0.0
+    if e - r > 4.5:
+        return 0.0, 0.0, 0.0
+    return _step(r, e, kw, kdw)
+
+
+@numba.njit(cache=True, nogil=True)
+def _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, J, want_j):
+    """Censored residuals ``res`` (n,) (module docstring) at ``p`` (7,) and, when ``want_j``,
+    their Jacobian ``J`` (n, 7) (analytic). Returns the cost (sum of squares)."""
+    kw, kdw = _kernel(max(p[6], 0.05))
+    n = cols.size
+    fxb = np.empty(n)
+    dfxb = np.empty((n, 5))
+    ylin = np.empty((n, 2))
+    dylin = np.empty((n, 2, 4))
+    _columns(p, cols, fx, fy, cx, cy, b, H, kw, kdw, fxb, dfxb, ylin, dylin)
+    amp = p[5] - p[4]
+    pol = -1.0 if positive else 1.0  # d(bright fraction) / d(bars)
+    cost = 0.0
+    q = 0
+    for i in range(n):
+        for r in range(rlo[i], rhi[i] + 1):
+            ft, dte, dts = _edge(r, ylin[i, 0], kw, kdw)
+            fb, dbe, dbs = _edge(r, ylin[i, 1], kw, kdw)
+            fy_ = ft - fb
+            bars = fxb[i] * fy_
+            bf = 1.0 - bars if positive else bars
+            m = p[4] + amp * bf
+            o = obs[q]
+            if o >= _CLIP:
+                rr = m - 255.0 if m < 255.0 else 0.0
+                active = m < 255.0
+            else:
+                rr = m - o
+                active = True
+            res[q] = rr
+            cost += rr * rr
+            if want_j:
+                if active:
+                    k = amp * pol
+                    for t in range(4):
+                        dfy = dte * dylin[i, 0, t] - dbe * dylin[i, 1, t]
+                        dfx = dfxb[i, t] if t < 3 else 0.0
+                        J[q, t] = k * (dfx * fy_ + fxb[i] * dfy)
+                    J[q, 4] = 1.0 - bf
+                    J[q, 5] = bf
+                    J[q, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
+                else:
+                    for t in range(7):
+                        J[q, t] = 0.0
+            q += 1
+    return cost
+
+
+@numba.njit(cache=True, nogil=True)
+def _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, iterations, fix_alpha, fix_sigma=False):
+    """Levenberg-Marquardt from ``p`` (7,), updated in place (alpha held when ``fix_alpha``,
+    the blur sd when ``fix_sigma``).
+    Returns ``(cost, JtJ (7, 7))``."""
+    n = obs.size
+    res = np.empty(n)
+    J = np.empty((n, 7))
+    cost = _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, J, True)
+    lam = 1e-3
+    q = np.empty(7)
+    rq = np.empty(n)
+    Jq = np.empty((n, 7))
+    A = J.T @ J
+    g = J.T @ res
+    for it in range(iterations):
+        M = A.copy()
+        for k in range(7):
+            M[k, k] += lam * A[k, k] + 1e-12
+        for f in (2, 6):
+            if (f == 2 and fix_alpha) or (f == 6 and fix_sigma):
+                for k in range(7):
+                    M[f, k] = 0.0
+                    M[k, f] = 0.0
+                M[f, f] = 1.0
+                g[f] = 0.0
+        step = np.linalg.solve(M, g)
+        for k in range(7):
+            q[k] = p[k] - step[k]
+        q[6] = min(max(q[6], SIGMA_MIN), 3.0)
+        q[5] = max(q[5], 255.0)
+        if not q[1] > 0:
+            lam *= 10.0
+            continue
+        cq = _evaluate(q, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, rq, Jq, True)
+        if cq < cost:
+            conv = cost - cq < 1e-7 * (cost + 1e-9)
+            p[:] = q
+            res[:] = rq
+            J[:, :] = Jq
+            A = J.T @ J
+            g = J.T @ res
+            cost = cq
+            lam = max(lam * 0.3, 1e-7)
+            if conv:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e7:
+                break
+    return cost, A
+
+
+@numba.njit(cache=True, nogil=True)
+def _roi(p, h, w, fx, fy, cx, cy, b, H, margin, share):
+    """Columns and per-column row ranges of the printed target's pixels at pose ``p``:
+    the bars and the gap, plus ``share`` of the ``margin`` (m) around them, trimmed by
+    one pixel so that the background behind the target stays out."""
+    X, Z, a, Y = p[0], p[1], p[2], p[3]
+    c, s = math.cos(a), math.sin(a)
+    uo = 1.5 * b + share * margin
+    xl = cx + fx * (X - uo * c) / (Z + uo * s)
+    xr = cx + fx * (X + uo * c) / (Z - uo * s)
+    c0 = max(int(math.ceil(xl + 0.5)), 0)
+    c1 = min(int(math.floor(xr - 0.5)), w - 1)
+    n = max(c1 - c0 + 1, 0)
+    cols = np.empty(n, np.int64)
+    rlo = np.empty(n, np.int64)
+    rhi = np.empty(n, np.int64)
+    D = Z * c + X * s
+    vo = 0.5 * H + share * margin
+    for i in range(n):
+        j = c0 + i
+        t = (j - cx) / fx
+        z = D / (c + t * s)
+        cols[i] = j
+        rlo[i] = max(int(math.ceil(cy + fy * (Y - vo) / z + 0.5)), 0)
+        rhi[i] = min(int(math.floor(cy + fy * (Y + vo) / z - 0.5)), h - 1)
+    return cols, rlo, rhi
+
+
+@numba.njit(cache=True, nogil=True)
+def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0, sigma0):
+    """Fit from the pose ``p0`` = (X, Z, alpha, Y) (m, rad). Returns ``(ok, p (7,), cov (7, 7),
+    n_pixels, cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma)."""
+    h, w = image.shape
+    p = np.empty(7)
+    cov = np.eye(7)
+    p[:4] = p0
+    cols, rlo, rhi = _roi(p, h, w, fx, fy, cx, cy, b, H, margin, MARGIN_SHARE)
+    n = 0
+    for i in range(cols.size):
+        n += max(rhi[i] - rlo[i] + 1, 0)
+    if n < 60:
+        return False, p, cov, n, 0.0
+    obs = np.empty(n)
+    q = 0
+    for i in range(cols.size):
+        for r in range(rlo[i], rhi[i] + 1):
+            obs[q] = image[r, cols[i]]
+            q += 1
+    # starts: the edge-based pose, scaled along its line of sight (the range is what clipped
+    # edges get wrong), turned by +-_TURN (small targets: alpha is weakly determined), and
+    # the other root of A.14 (the mirror solution, thesis section 4.2.2) when it differs
+    n_alt = 1 if abs(alt_alpha - p0[2]) > 0.01 else 0
+    n_starts = len(_SCALES) * (1 + n_alt) + 2
+    best = np.empty(7)
+    best_cost = np.inf
+    for st in range(n_starts):
+        p[:4] = p0
+        if st < len(_SCALES) * (1 + n_alt):
+            sc = _SCALES[st % len(_SCALES)]
+            p[0] *= sc
+            p[1] *= sc
+            p[3] *= sc
+            if st >= len(_SCALES):
+                p[2] = alt_alpha
+        else:
+            p[2] = p0[2] + (_TURN if st == n_starts - 1 else -_TURN)
+        if not abs(p[2]) < _ALPHA_MAX:
+            continue
+        p[4] = dark0
+        p[5] = dark0 + 2.0 * (255.0 - dark0)
+        p[6] = max(sigma0, SIGMA_MIN)
+        c, _ = _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS, False)
+        if c < best_cost:
+            best_cost = c
+            best[:] = p
+    p[:] = best
+    cost, A = _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, ITERATIONS, False)
+    m_act = 0
+    res = np.empty(n)
+    _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, np.empty((1, 7)), False)
+    for q in range(n):
+        if res[q] != 0.0:
+            m_act += 1
+    s2 = cost / max(m_act - 7, 1)
+    for k in range(7):
+        A[k, k] += 1e-12
+    cov = np.linalg.inv(A) * s2
+    return True, p, cov, n, cost
+
+
+def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, float, float], positive: bool,
+                dark: float, sigma: float = 0.4, alt_alpha: float | None = None):
+    """Refine an edge-based pose of a clipped target on its pixels (module docstring).
+
+    Args:
+        image: ``(H, W)`` uint8 grey frame.
+        camera: an undistorted :class:`localizer.Camera`.
+        target: :class:`localizer.TargetSpec`.
+        pose: ``(X, Z, alpha, Y)`` start (m, rad), camera frame (:func:`localizer.pose._model`).
+        positive: target polarity.
+        dark: start of the dark grey level.
+        sigma: start of the blur sd (px).
+        alt_alpha: a second orientation to start from (rad; the other root of eq A.14).
+    Returns:
+        ``None`` if the target has too few pixels, else ``(p, cov, n_pixels)``: ``p`` (7,) =
+        (X, Z, alpha, Y, dark, bright, sigma) and its covariance ``cov`` (7, 7) from the
+        Gauss-Newton normal matrix scaled by the residual variance.
+    """
+    pose = np.asarray(pose, np.float64)
+    alt = float(pose[2] if alt_alpha is None else alt_alpha)
+    ok, p, cov, n, cost = _refine(image, pose, alt, float(camera.fx), float(camera.fy),
+                            float(camera.cx), float(camera.cy), float(target.bar_width),
+                            float(target.bar_height), float(target.margin), bool(positive), float(dark),
+                            float(sigma))
+    if not ok or not np.all(np.isfinite(p)) or not np.all(np.isfinite(cov)):
+        return None
+    return p, cov, n, cost
