@@ -19,6 +19,10 @@ from localizer.target import TargetSpec
 
 #: an exact fit whose normalised residual exceeds this is not a target
 MAX_FIT_RMS = 7.0
+#: an edge-based pose is "uncertain" (photometric refinement in "auto" mode, from several
+#: starts) when its orientation sd is above this (rad) or its range sd above this share of the range
+WIDE_SD_ALPHA = math.radians(1.0)
+WIDE_SD_RANGE = 0.003
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:
@@ -107,31 +111,39 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     return out
 
 
-def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, m):
-    """The exact pose from subpixel edges ``m``, or None if the model does not fit them."""
+def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, m, refine: bool = True):
+    """The exact pose from subpixel edges ``m`` (refined on the pixels as ``p.photometric``
+    says, when ``refine``), or None if the model does not fit them."""
     clipped = (v.bright >= 250.0) or (v.dark <= 5.0)
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
     est = exact_pose(m, camera, target, v.positive, floor)
-    if (v.bright >= 250.0 and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance)
-            and min(m.bar_heights.tolist()) < p.photometric_max_rows):
-        est = _photometric(img, camera, target, v, est)
+    if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
+        sd = np.sqrt(np.abs(np.diag(est.covariance)))
+        uncertain = bool(sd[2] > WIDE_SD_ALPHA or sd[0] > WIDE_SD_RANGE * est.distance)
+        if (p.photometric == "all" or v.bright >= 250.0
+                or (p.photometric == "auto" and uncertain)):
+            # an uncertain clipped pose may be off by more than the fit's basin: several starts
+            est = _photometric(img, camera, target, v, est, uncertain and v.bright >= 250.0)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and np.all(np.isfinite(est.covariance))):
         return None
     return est
 
 
-def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est):
-    """The pose of a clipped target refined on its pixels (:mod:`localizer.photometric`).
+def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool):
+    """The edge-based pose ``est`` refined on the target's pixels (:mod:`localizer.photometric`),
+    from several starts when ``wide``.
 
-    The edge-based covariance is kept: the censored pixels make the fit's own normal
-    matrix blind to the directions in which clipped edges can slide, and the edge-based one
-    (with its per-edge floor for clipped pixels) is the conservative statement."""
+    The edge-based covariance is kept: on clipped targets the censored pixels make the fit's
+    own normal matrix blind to the directions in which clipped edges can slide, and on the
+    others its pixel-level model error (background bleeding into the margin, the blur
+    model) is not in it; the edge-based covariance (with its per-edge floor for clipped
+    pixels) is the conservative statement."""
     alt = [a for a in est.alpha_candidates if abs(a - est.alpha) > 0.01]
     r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive), float(v.dark),
-                    alt_alpha=alt[0] if alt else None)
+                    float(v.bright), alt_alpha=alt[0] if alt else None, wide=wide)
     if r is None:
         return est
     q = r[0]
@@ -157,7 +169,7 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
         est = thesis_pose(m, camera, target)
         # the thesis's verification lets some lettering through (strokes of an "m" or "n");
         # a target is reported only if the perspective-exact model fits its subpixel edges too
-        if _exact(img, camera, target, v, p, subpixel_edges(img, camera, v)) is None:
+        if _exact(img, camera, target, v, p, subpixel_edges(img, camera, v), refine=False) is None:
             return None
     else:
         est = _exact(img, camera, target, v, p, m)

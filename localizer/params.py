@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 METHODS = ("thesis", "exact")
+PHOTOMETRIC = ("off", "clipped", "auto", "all")
 
 
 @dataclass(frozen=True)
@@ -43,10 +44,13 @@ class DetectorParams:
     edge_window: int = 9  # px, thesis neighbourhood of a rough edge
     # --- exact pose covariance
     edge_sigma_floor: float = 0.05  # px, model error added to every averaged edge position
-    # --- saturated targets (localizer.photometric): the pose of a clipped target whose shorter
-    # bar is under this many rows is refined on the target's pixels (whole-target clipped model,
-    # ~2-3 ms per such target); taller targets keep the edge-based pose; 0 turns it off
-    photometric_max_rows: float = 48.0
+    # --- whole-target photometric refinement (localizer.photometric, undistorted cameras):
+    # "clipped" refines the pose of targets whose bright side is clipped (saturated light, where
+    # edges measured one at a time lose up to ~0.6 px each); "auto" those and every target whose
+    # edge-based pose is uncertain (orientation sd > 1 deg or range sd > 0.3 %: small, far or
+    # dim targets); "all" every target; "off" none. Costs ~0.5-2 ms per refined target (up to
+    # ~7 ms for an uncertain saturated one, which gets several starts)
+    photometric: str = "auto"
     # --- misc
     max_targets: int = 32  # most targets reported per frame
     max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)
@@ -55,7 +59,7 @@ class DetectorParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name in ("debug_dir",) or v is None or isinstance(v, bool):
+            if f.name in ("debug_dir", "photometric") or v is None or isinstance(v, bool):
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"DetectorParams.{f.name} must be a finite non-negative number, got {v!r}")
@@ -65,6 +69,8 @@ class DetectorParams:
             raise ValueError("DetectorParams.contrast_window must be >= 2 px")
         if self.edge_window < 3:
             raise ValueError("DetectorParams.edge_window must be >= 3 px")
+        if self.photometric not in PHOTOMETRIC:
+            raise ValueError(f"DetectorParams.photometric must be one of {PHOTOMETRIC}, got {self.photometric!r}")
         if not 0 < self.max_alpha < math.pi / 2:
             raise ValueError("DetectorParams.max_alpha must be in (0, pi/2) rad")
 

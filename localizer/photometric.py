@@ -24,7 +24,7 @@ bottoms are the lines ``y = cy + fy (Y -+ H/2) / z(c)`` with ``z(c)`` the range 
 the ray of column ``c`` meets the target plane.
 
 Clipped observations are censored: a pixel seen at 255 costs nothing while the model
-is at or above 255 and ``255 - model`` below it; an unclipped pixel costs
+is at or above 255 and ``255 - model`` below it (likewise at 0); an unclipped pixel costs
 ``model - grey`` with the unclipped model. Seven unknowns (X, Z, alpha, Y, dark,
 bright, sigma) by Levenberg-Marquardt from the edge-based pose. Only the pixels of
 the printed target (bars, gap and half of the margin, which is what separates a
@@ -43,6 +43,10 @@ from localizer.edges import _CLIP, _kernel, _step
 
 #: the fraction of the printed margin (from the bars outwards) that enters the fit
 MARGIN_SHARE = 0.5
+#: pixels further than this from every edge (px, at the start pose) stay out of the fit
+REACH = 4.0
+#: most rows (columns) sampled along a vertical (horizontal) edge
+MAX_LINES = 24
 #: smallest blur sd of the model (px)
 SIGMA_MIN = 0.2
 #: LM iterations
@@ -83,17 +87,17 @@ def _columns(p, cols, fx, fy, cx, cy, b, H, kw, kdw, fxb, dfxb, ylin, dylin):
             dfxb[i, m] = 0.0
         for k in range(4):
             if j - xe[k] > 4.5:
-                continue_f = 1.0
+                fk = 1.0
                 de = 0.0
                 ds = 0.0
             elif xe[k] - j > 4.5:
-                continue_f = 0.0
+                fk = 0.0
                 de = 0.0
                 ds = 0.0
             else:
-                continue_f, de, ds = _step(j, xe[k], kw, kdw)
+                fk, de, ds = _step(j, xe[k], kw, kdw)
             sg = 1.0 if k % 2 == 0 else -1.0
-            f += sg * continue_f
+            f += sg * fk
             for m in range(3):
                 dfxb[i, m] += sg * de * dxe[k, m]
             dfxb[i, 4] += sg * ds
@@ -123,63 +127,65 @@ def _edge(r, e, kw, kdw):
 
 
 @numba.njit(cache=True, nogil=True)
-def _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, J, want_j):
+def _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, J, want_j):
     """Censored residuals ``res`` (n,) (module docstring) at ``p`` (7,) and, when ``want_j``,
     their Jacobian ``J`` (n, 7) (analytic). Returns the cost (sum of squares)."""
     kw, kdw = _kernel(max(p[6], 0.05))
-    n = cols.size
+    n = ucols.size
     fxb = np.empty(n)
     dfxb = np.empty((n, 5))
     ylin = np.empty((n, 2))
     dylin = np.empty((n, 2, 4))
-    _columns(p, cols, fx, fy, cx, cy, b, H, kw, kdw, fxb, dfxb, ylin, dylin)
+    _columns(p, ucols, fx, fy, cx, cy, b, H, kw, kdw, fxb, dfxb, ylin, dylin)
     amp = p[5] - p[4]
     pol = -1.0 if positive else 1.0  # d(bright fraction) / d(bars)
     cost = 0.0
-    q = 0
-    for i in range(n):
-        for r in range(rlo[i], rhi[i] + 1):
-            ft, dte, dts = _edge(r, ylin[i, 0], kw, kdw)
-            fb, dbe, dbs = _edge(r, ylin[i, 1], kw, kdw)
-            fy_ = ft - fb
-            bars = fxb[i] * fy_
-            bf = 1.0 - bars if positive else bars
-            m = p[4] + amp * bf
-            o = obs[q]
-            if o >= _CLIP:
-                rr = m - 255.0 if m < 255.0 else 0.0
-                active = m < 255.0
+    for q in range(obs.size):
+        i = pci[q]
+        r = pr[q]
+        ft, dte, dts = _edge(r, ylin[i, 0], kw, kdw)
+        fb, dbe, dbs = _edge(r, ylin[i, 1], kw, kdw)
+        fy_ = ft - fb
+        bars = fxb[i] * fy_
+        bf = 1.0 - bars if positive else bars
+        m = p[4] + amp * bf
+        o = obs[q]
+        if o >= _CLIP:
+            rr = m - 255.0 if m < 255.0 else 0.0
+            active = m < 255.0
+        elif o <= 0.5:  # clipped at black (dim light)
+            rr = m if m > 0.0 else 0.0
+            active = m > 0.0
+        else:
+            rr = m - o
+            active = True
+        res[q] = rr
+        cost += rr * rr
+        if want_j:
+            if active:
+                k = amp * pol
+                for t in range(4):
+                    dfy = dte * dylin[i, 0, t] - dbe * dylin[i, 1, t]
+                    dfx = dfxb[i, t] if t < 3 else 0.0
+                    J[q, t] = k * (dfx * fy_ + fxb[i] * dfy)
+                J[q, 4] = 1.0 - bf
+                J[q, 5] = bf
+                J[q, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
             else:
-                rr = m - o
-                active = True
-            res[q] = rr
-            cost += rr * rr
-            if want_j:
-                if active:
-                    k = amp * pol
-                    for t in range(4):
-                        dfy = dte * dylin[i, 0, t] - dbe * dylin[i, 1, t]
-                        dfx = dfxb[i, t] if t < 3 else 0.0
-                        J[q, t] = k * (dfx * fy_ + fxb[i] * dfy)
-                    J[q, 4] = 1.0 - bf
-                    J[q, 5] = bf
-                    J[q, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
-                else:
-                    for t in range(7):
-                        J[q, t] = 0.0
-            q += 1
+                for t in range(7):
+                    J[q, t] = 0.0
     return cost
 
 
 @numba.njit(cache=True, nogil=True)
-def _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, iterations, fix_alpha, fix_sigma=False):
+def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations, fix_alpha, fix_sigma=False):
     """Levenberg-Marquardt from ``p`` (7,), updated in place (alpha held when ``fix_alpha``,
     the blur sd when ``fix_sigma``).
     Returns ``(cost, JtJ (7, 7))``."""
     n = obs.size
     res = np.empty(n)
     J = np.empty((n, 7))
-    cost = _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, J, True)
+    cost = _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, J, True)
     lam = 1e-3
     q = np.empty(7)
     rq = np.empty(n)
@@ -201,11 +207,11 @@ def _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, iterations, fix_
         for k in range(7):
             q[k] = p[k] - step[k]
         q[6] = min(max(q[6], SIGMA_MIN), 3.0)
-        q[5] = max(q[5], 255.0)
+        q[5] = max(q[5], q[4] + 1.0)
         if not q[1] > 0:
             lam *= 10.0
             continue
-        cq = _evaluate(q, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, rq, Jq, True)
+        cq = _evaluate(q, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, rq, Jq, True)
         if cq < cost:
             conv = cost - cq < 1e-7 * (cost + 1e-9)
             p[:] = q
@@ -225,10 +231,13 @@ def _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, iterations, fix_
 
 
 @numba.njit(cache=True, nogil=True)
-def _roi(p, h, w, fx, fy, cx, cy, b, H, margin, share):
-    """Columns and per-column row ranges of the printed target's pixels at pose ``p``:
-    the bars and the gap, plus ``share`` of the ``margin`` (m) around them, trimmed by
-    one pixel so that the background behind the target stays out."""
+def _select(p, h, w, fx, fy, cx, cy, b, H, margin, share, reach, max_lines):
+    """The pixels of the fit at pose ``p``: inside the printed target (the bars and the gap,
+    plus ``share`` of the ``margin`` (m) around them, trimmed by one pixel so that the
+    background behind the target stays out) and within ``reach`` px of an edge; along
+    each edge at most ``max_lines`` evenly spread rows (vertical edges) or columns (tops
+    and bottoms), which bounds the work on large targets. Returns ``(ucols (m,), pci (n,),
+    pr (n,))``: the columns used, and each pixel's index into them and its row."""
     X, Z, a, Y = p[0], p[1], p[2], p[3]
     c, s = math.cos(a), math.sin(a)
     uo = 1.5 * b + share * margin
@@ -236,74 +245,106 @@ def _roi(p, h, w, fx, fy, cx, cy, b, H, margin, share):
     xr = cx + fx * (X + uo * c) / (Z - uo * s)
     c0 = max(int(math.ceil(xl + 0.5)), 0)
     c1 = min(int(math.floor(xr - 0.5)), w - 1)
-    n = max(c1 - c0 + 1, 0)
-    cols = np.empty(n, np.int64)
-    rlo = np.empty(n, np.int64)
-    rhi = np.empty(n, np.int64)
+    ncol = max(c1 - c0 + 1, 0)
+    xe = np.empty(4)
+    for k in range(4):
+        u = (k - 1.5) * b
+        xe[k] = cx + fx * (X + u * c) / (Z - u * s)
     D = Z * c + X * s
     vo = 0.5 * H + share * margin
-    for i in range(n):
+    cstride = max(1, int(math.ceil(ncol / max_lines)))
+    ucols = np.empty(ncol, np.int64)
+    cap = 64
+    pci = np.empty(cap, np.int64)
+    pr = np.empty(cap, np.int64)
+    n = 0
+    m = 0
+    for i in range(ncol):
         j = c0 + i
         t = (j - cx) / fx
         z = D / (c + t * s)
-        cols[i] = j
-        rlo[i] = max(int(math.ceil(cy + fy * (Y - vo) / z + 0.5)), 0)
-        rhi[i] = min(int(math.floor(cy + fy * (Y + vo) / z - 0.5)), h - 1)
-    return cols, rlo, rhi
+        rlo = max(int(math.ceil(cy + fy * (Y - vo) / z + 0.5)), 0)
+        rhi = min(int(math.floor(cy + fy * (Y + vo) / z - 0.5)), h - 1)
+        ytop = cy + fy * (Y - 0.5 * H) / z
+        ybot = cy + fy * (Y + 0.5 * H) / z
+        near_v = False
+        for k in range(4):
+            if abs(j - xe[k]) <= reach:
+                near_v = True
+        on_h = (i % cstride) == 0
+        rstride = max(1, int(math.ceil((ybot - ytop) / max_lines)))
+        used = False
+        for r in range(rlo, rhi + 1):
+            near_h = abs(r - ytop) <= reach or abs(r - ybot) <= reach
+            if (near_h and (on_h or near_v)) or (near_v and (r - rlo) % rstride == 0):
+                if n == cap:
+                    cap *= 2
+                    a1 = np.empty(cap, np.int64)
+                    a2 = np.empty(cap, np.int64)
+                    a1[:n] = pci[:n]
+                    a2[:n] = pr[:n]
+                    pci = a1
+                    pr = a2
+                pci[n] = m
+                pr[n] = r
+                n += 1
+                used = True
+        if used:
+            ucols[m] = j
+            m += 1
+    return ucols[:m].copy(), pci[:n].copy(), pr[:n].copy()
 
 
 @numba.njit(cache=True, nogil=True)
-def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0, sigma0):
+def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0, bright0, sigma0, wide):
     """Fit from the pose ``p0`` = (X, Z, alpha, Y) (m, rad). Returns ``(ok, p (7,), cov (7, 7),
     n_pixels, cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma)."""
     h, w = image.shape
     p = np.empty(7)
     cov = np.eye(7)
     p[:4] = p0
-    cols, rlo, rhi = _roi(p, h, w, fx, fy, cx, cy, b, H, margin, MARGIN_SHARE)
-    n = 0
-    for i in range(cols.size):
-        n += max(rhi[i] - rlo[i] + 1, 0)
+    ucols, pci, pr = _select(p, h, w, fx, fy, cx, cy, b, H, margin, MARGIN_SHARE, REACH, MAX_LINES)
+    n = pr.size
     if n < 60:
         return False, p, cov, n, 0.0
     obs = np.empty(n)
-    q = 0
-    for i in range(cols.size):
-        for r in range(rlo[i], rhi[i] + 1):
-            obs[q] = image[r, cols[i]]
-            q += 1
+    for q in range(n):
+        obs[q] = image[pr[q], ucols[pci[q]]]
     # starts: the edge-based pose, scaled along its line of sight (the range is what clipped
     # edges get wrong), turned by +-_TURN (small targets: alpha is weakly determined), and
     # the other root of A.14 (the mirror solution, thesis section 4.2.2) when it differs
+    # (only when the edge-based pose is uncertain, ``wide``: otherwise from that pose and the
+    # other root alone)
     n_alt = 1 if abs(alt_alpha - p0[2]) > 0.01 else 0
-    n_starts = len(_SCALES) * (1 + n_alt) + 2
+    n_scales = len(_SCALES) if wide else 1
+    n_starts = n_scales * (1 + n_alt) + (2 if wide else 0)
     best = np.empty(7)
     best_cost = np.inf
     for st in range(n_starts):
         p[:4] = p0
-        if st < len(_SCALES) * (1 + n_alt):
-            sc = _SCALES[st % len(_SCALES)]
+        if st < n_scales * (1 + n_alt):
+            sc = _SCALES[st % n_scales]
             p[0] *= sc
             p[1] *= sc
             p[3] *= sc
-            if st >= len(_SCALES):
+            if st >= n_scales:
                 p[2] = alt_alpha
         else:
             p[2] = p0[2] + (_TURN if st == n_starts - 1 else -_TURN)
         if not abs(p[2]) < _ALPHA_MAX:
             continue
         p[4] = dark0
-        p[5] = dark0 + 2.0 * (255.0 - dark0)
+        p[5] = bright0 if bright0 < _CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = max(sigma0, SIGMA_MIN)
-        c, _ = _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS, False)
+        c, _ = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS, False)
         if c < best_cost:
             best_cost = c
             best[:] = p
     p[:] = best
-    cost, A = _lm(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, ITERATIONS, False)
+    cost, A = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, ITERATIONS, False)
     m_act = 0
     res = np.empty(n)
-    _evaluate(p, obs, cols, rlo, rhi, fx, fy, cx, cy, b, H, positive, res, np.empty((1, 7)), False)
+    _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, np.empty((1, 7)), False)
     for q in range(n):
         if res[q] != 0.0:
             m_act += 1
@@ -315,7 +356,8 @@ def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0,
 
 
 def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, float, float], positive: bool,
-                dark: float, sigma: float = 0.4, alt_alpha: float | None = None):
+                dark: float, bright: float = 255.0, sigma: float = 0.4, alt_alpha: float | None = None,
+                wide: bool = True):
     """Refine an edge-based pose of a clipped target on its pixels (module docstring).
 
     Args:
@@ -325,8 +367,11 @@ def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, flo
         pose: ``(X, Z, alpha, Y)`` start (m, rad), camera frame (:func:`localizer.pose._model`).
         positive: target polarity.
         dark: start of the dark grey level.
+        bright: the bright grey level seen (255 when clipped: the fit then starts above it).
         sigma: start of the blur sd (px).
         alt_alpha: a second orientation to start from (rad; the other root of eq A.14).
+        wide: start from several poses around ``pose`` (scaled along the line of sight, turned
+            by +-12 deg), for an uncertain start; else from ``pose`` (and ``alt_alpha``) alone.
     Returns:
         ``None`` if the target has too few pixels, else ``(p, cov, n_pixels)``: ``p`` (7,) =
         (X, Z, alpha, Y, dark, bright, sigma) and its covariance ``cov`` (7, 7) from the
@@ -336,8 +381,8 @@ def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, flo
     alt = float(pose[2] if alt_alpha is None else alt_alpha)
     ok, p, cov, n, cost = _refine(image, pose, alt, float(camera.fx), float(camera.fy),
                             float(camera.cx), float(camera.cy), float(target.bar_width),
-                            float(target.bar_height), float(target.margin), bool(positive), float(dark),
-                            float(sigma))
+                            float(target.bar_height), float(target.margin), bool(positive), float(dark), float(bright),
+                            float(sigma), bool(wide))
     if not ok or not np.all(np.isfinite(p)) or not np.all(np.isfinite(cov)):
         return None
     return p, cov, n, cost

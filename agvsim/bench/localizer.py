@@ -179,9 +179,12 @@ def accuracy(n: int, rng) -> dict:
 
     cams = {16: Camera.thesis(16.0), 50: Camera.thesis(50.0)}
     photos = list(real_photos(cams[16]).values())
-    rows = {"exact": [], "thesis": []}
-    missed = {"exact": 0, "thesis": 0}
-    extra = {"exact": 0, "thesis": 0}
+    #: configurations: the default, the exact pose from the edges alone, the thesis pipeline
+    configs = {"exact": ("exact", {}), "exact_edges_only": ("exact", {"photometric": "off"}),
+               "thesis": ("thesis", {})}
+    rows = {k: [] for k in configs}
+    missed = {k: 0 for k in configs}
+    extra = {k: 0 for k in configs}
     for i in range(n):
         lens = 16 if i % 2 == 0 else 50
         cam = cams[lens]
@@ -192,8 +195,8 @@ def accuracy(n: int, rng) -> dict:
         img = render_frame(cam, pose, polarities=pol, lighting=lighting, blur=rng.uniform(0, 1),
                            noise=rng.uniform(0, 3), background=bg, rng=rng)
         h_rows = float(target_outline(cam, pose)["bar_heights"].min())
-        for method in ("exact", "thesis"):
-            obs = detect_targets(img, cam, method=method)
+        for method, (meth, kw) in configs.items():
+            obs = detect_targets(img, cam, method=meth, **kw)
             match = [o for o in obs if abs(o.beta - pose.beta) < 0.02 and abs(o.distance / pose.distance - 1) < 0.2]
             extra[method] += len(obs) - len(match[:1])
             if not match:
@@ -261,7 +264,7 @@ def format_table(r: dict) -> str:
         lines.append(f"  {row['targets']} targets: {row['localizer_exact_ms']:.3f} ms (found {row['found_mean']:.2f})")
     acc = r["accuracy"]
     lines.append(f"accuracy over the envelope ({acc['samples']} frames):")
-    for m in ("exact", "thesis"):
+    for m in [k for k in acc if k != "samples"]:
         a = acc[m]
         lines.append(f"  {m}: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
                                             for k, v in a.items() if k != "by_lighting"))
