@@ -23,6 +23,10 @@ MAX_FIT_RMS = 7.0
 #: starts) when its orientation sd is above this (rad) or its range sd above this share of the range
 WIDE_SD_ALPHA = math.radians(1.0)
 WIDE_SD_RANGE = 0.003
+#: largest Mahalanobis distance (under the edge-based covariance) of an accepted photometric
+#: refinement from the edge-based pose; on 1,648 refinements of the accuracy sweep the
+#: largest was 4.9
+PHOTOMETRIC_GATE = 6.0
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:
@@ -149,6 +153,11 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
     q = r[0]
     X, Z, alpha, Y = (float(x) for x in q[:4])
     if not (Z > 0 and abs(alpha) < math.radians(89.0)):
+        return est
+    # a refinement far outside the edge-based covariance means the pixel model does not hold
+    # here (something across the target, uneven light): keep the edges' answer
+    dv = np.array([math.hypot(X, Z) - est.distance, math.atan2(X, Z) - est.beta, alpha - est.alpha])
+    if not float(dv @ np.linalg.solve(est.covariance, dv)) <= PHOTOMETRIC_GATE ** 2:
         return est
     return dataclasses.replace(est, distance=math.hypot(X, Z), beta=math.atan2(X, Z), alpha=alpha, z=Z, x=X,
                                height=Y)
