@@ -2,7 +2,8 @@
 
 Speed frames (512 x 480 unless scaled) each hold one two-bar target, one
 ArUco DICT_4X4_50 marker and one AprilTag tag36h11, on a real-photo
-background; every detector runs on the same frames, one thread, after a
+background; every detector runs on the same frames, one thread (OpenCV's
+thread count is set to 1 for the run), after a
 warm-up call (the localizer's first call loads or compiles its numba kernels;
 its duration is reported separately).
 """
@@ -122,6 +123,17 @@ def _peers(camera):
 
 
 def run(args) -> dict:
+    import cv2
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one thread for every contender (OpenCV would spread ArUco over the cores)
+    try:
+        return _run(args)
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def _run(args) -> dict:
     import numpy as np
 
     from localizer import Camera, detect_targets
