@@ -187,3 +187,18 @@ def test_saturated_blurred_alpha(polarity, blur):
         o = _one(img, cam)
         assert abs(o.alpha - pose.alpha) <= 2 * DEG
         assert o.distance == pytest.approx(pose.distance, rel=0.01)
+
+
+def test_steep_close_target_passes_aspect_test():
+    """An envelope corner hypothesis found: 1 m, alpha -68 deg, near the right border. At 1 m the
+    perspective squeezes the far bar, so the image aspect looks like ~76 deg; the aspect test
+    admits up to ``max_alpha`` (80 deg) and the target is found."""
+    cam = Camera.thesis(16.0)
+    pose = pose_at_column(cam, 1.0, -68 * DEG, cam.cx + 0.875 * 250)
+    pose = TargetPose(1.0, pose.beta, pose.alpha, 0.0)
+    assert in_envelope(cam, pose)
+    img = render_frame(cam, pose, polarities="positive", blur=0.7, noise=2.0, background=0.45,
+                       rng=np.random.default_rng(0))
+    o = _one(img, cam)
+    assert abs(o.distance - 1.0) < 0.02 and abs(o.alpha - pose.alpha) < 1.5 * DEG
+    assert detect_targets(img, cam, max_alpha=math.radians(75.0)) == []  # the old bound refused it
