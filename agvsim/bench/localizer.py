@@ -5,7 +5,10 @@ ArUco DICT_4X4_50 marker and one AprilTag tag36h11, on a real-photo
 background; every detector runs on the same frames, one thread (OpenCV's
 thread count is set to 1 for the run), after a
 warm-up call (the localizer's first call loads or compiles its numba kernels;
-its duration is reported separately).
+its duration is reported separately). Two timings of the 512 x 480 frames:
+``speed`` runs each contender ``--repeats`` times in a row on a frame (warm caches);
+``speed_interleaved`` runs the contenders in turn, call by call, so each call finds the
+caches as the others left them, as in a pipeline that does other work between frames.
 """
 from __future__ import annotations
 
@@ -90,6 +93,26 @@ def _time(fn, frames, repeats):
     return 1000.0 * statistics.median(per)
 
 
+def _time_interleaved(fns: dict, frames, repeats) -> dict:
+    """Median ms per frame of each function in ``fns`` (name -> callable on a frame): for every
+    frame, ``repeats`` rounds in which each contender runs once, in turn (so a slow spell of
+    the machine hits all of them alike); per frame the median of its rounds, then the median
+    over frames."""
+    per = {k: [] for k in fns}
+    for f in frames:
+        for fn in fns.values():
+            fn(f)
+        rounds = {k: [] for k in fns}
+        for _ in range(repeats):
+            for k, fn in fns.items():
+                t0 = time.perf_counter()
+                fn(f)
+                rounds[k].append(time.perf_counter() - t0)
+        for k in fns:
+            per[k].append(statistics.median(rounds[k]))
+    return {k: 1000.0 * statistics.median(v) for k, v in per.items()}
+
+
 def _peers(camera):
     import cv2
     import numpy as np
@@ -152,14 +175,18 @@ def _run(args) -> dict:
     found = {"exact": 0, "aruco": 0, "apriltag": 0}
     for f in frames:
         found["exact"] += len(detect_targets(f, cam)) >= 1
-    for method in ("exact", "thesis"):
-        result["speed"][f"localizer_{method}_ms"] = _time(lambda f: detect_targets(f, cam, method=method),
-                                                          frames, args.repeats)
+    # block timing (each contender on each frame `repeats` times in a row: warm caches), as
+    # recorded since the start, then interleaved timing (contenders in turn: each call finds the
+    # caches as the others left them, closer to a pipeline that does other work between frames)
+    fns = {f"localizer_{m}": (lambda f, m=m: detect_targets(f, cam, method=m)) for m in ("exact", "thesis")}
     if not args.skip_peers:
         peers, _ = _peers(cam)
+        fns.update(peers)
         for name, fn in peers.items():
-            result["speed"][f"{name}_ms"] = _time(fn, frames, args.repeats)
             found[name] = sum(len(fn(f)) >= 1 for f in frames)
+    for k, fn in fns.items():
+        result["speed"][f"{k}_ms"] = _time(fn, frames, args.repeats)
+    result["speed_interleaved"] = {f"{k}_ms": v for k, v in _time_interleaved(fns, frames, args.repeats).items()}
     result["speed"]["frames"] = len(frames)
     result["speed"]["found"] = found
     for w, h in ((512, 480), (1280, 1200), (2048, 1920)):
@@ -275,6 +302,11 @@ def format_table(r: dict) -> str:
         if k.endswith("_ms"):
             ratio = f"  ({v / s['localizer_exact_ms']:.1f}x localizer_exact)" if not k.startswith("localizer") else ""
             lines.append(f"  {k[:-3]:<20} {v:8.3f}{ratio}")
+    si = r.get("speed_interleaved", {})
+    if si:
+        lines.append("  interleaved (contenders in turn, call by call): " + ", ".join(
+            f"{k[:-3]} {v:.3f}" + (f" ({v / si['localizer_exact_ms']:.1f}x)" if not k.startswith("localizer") else "")
+            for k, v in si.items()))
     lines.append(f"  first call (kernel load or compile): exact {s['first_call_exact_s']:.2f} s, "
                  f"thesis {s['first_call_thesis_s']:.2f} s")
     lines.append("time vs resolution (ms/frame):")
