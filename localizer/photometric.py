@@ -189,9 +189,8 @@ def _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, J, wa
 
 
 @numba.njit(cache=True, nogil=True)
-def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations, fix_alpha, fix_sigma=False):
-    """Levenberg-Marquardt from ``p`` (7,), updated in place (alpha held when ``fix_alpha``,
-    the blur sd when ``fix_sigma``).
+def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations):
+    """Levenberg-Marquardt from ``p`` (7,), updated in place.
     Returns ``(cost, JtJ (7, 7))``."""
     n = obs.size
     res = np.empty(n)
@@ -207,13 +206,6 @@ def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations, fix_
         M = A.copy()
         for k in range(7):
             M[k, k] += lam * A[k, k] + 1e-12
-        for f in (2, 6):
-            if (f == 2 and fix_alpha) or (f == 6 and fix_sigma):
-                for k in range(7):
-                    M[f, k] = 0.0
-                    M[k, f] = 0.0
-                M[f, f] = 1.0
-                g[f] = 0.0
         step = np.linalg.solve(M, g)
         for k in range(7):
             q[k] = p[k] - step[k]
@@ -347,12 +339,12 @@ def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0,
         p[4] = dark0
         p[5] = bright0 if bright0 < _CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = max(sigma0, SIGMA_MIN)
-        c, _ = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS, False)
+        c, _ = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS)
         if c < best_cost:
             best_cost = c
             best[:] = p
     p[:] = best
-    cost, A = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, ITERATIONS, False)
+    cost, A = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, ITERATIONS)
     m_act = 0
     res = np.empty(n)
     _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, np.empty((1, 7)), False)
