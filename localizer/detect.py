@@ -118,7 +118,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
 def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, m, refine: bool = True):
     """The exact pose from subpixel edges ``m`` (refined on the pixels as ``p.photometric``
     says, when ``refine``), or None if the model does not fit them."""
-    clipped = (v.bright >= 250.0) or (v.dark <= 5.0)
+    saturated = v.bright >= 250.0
+    clipped = saturated or (v.dark <= 5.0)
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
@@ -126,10 +127,9 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
         sd = np.sqrt(np.abs(np.diag(est.covariance)))
         uncertain = bool(sd[2] > WIDE_SD_ALPHA or sd[0] > WIDE_SD_RANGE * est.distance)
-        if (p.photometric == "all" or v.bright >= 250.0
-                or (p.photometric == "auto" and uncertain)):
-            # an uncertain clipped pose may be off by more than the fit's basin: several starts
-            est = _photometric(img, camera, target, v, est, uncertain and v.bright >= 250.0)
+        if p.photometric == "all" or saturated or (p.photometric == "auto" and uncertain):
+            # an uncertain saturated pose may be off by more than the fit's basin: several starts
+            est = _photometric(img, camera, target, v, est, uncertain and saturated)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and np.all(np.isfinite(est.covariance))):
         return None
@@ -150,17 +150,16 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
                     float(v.bright), alt_alpha=alt[0] if alt else None, wide=wide)
     if r is None:
         return est
-    q = r[0]
-    X, Z, alpha, Y = (float(x) for x in q[:4])
+    X, Z, alpha, Y = (float(x) for x in r[0][:4])
     if not (Z > 0 and abs(alpha) < math.radians(89.0)):
         return est
+    d, beta = math.hypot(X, Z), math.atan2(X, Z)
     # a refinement far outside the edge-based covariance means the pixel model does not hold
     # here (something across the target, uneven light): keep the edges' answer
-    dv = np.array([math.hypot(X, Z) - est.distance, math.atan2(X, Z) - est.beta, alpha - est.alpha])
+    dv = np.array([d - est.distance, beta - est.beta, alpha - est.alpha])
     if not float(dv @ np.linalg.solve(est.covariance, dv)) <= PHOTOMETRIC_GATE ** 2:
         return est
-    return dataclasses.replace(est, distance=math.hypot(X, Z), beta=math.atan2(X, Z), alpha=alpha, z=Z, x=X,
-                               height=Y)
+    return dataclasses.replace(est, distance=d, beta=beta, alpha=alpha, z=Z, x=X, height=Y)
 
 
 def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,

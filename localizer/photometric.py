@@ -191,7 +191,7 @@ def _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, J, wa
 @numba.njit(cache=True, nogil=True)
 def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations):
     """Levenberg-Marquardt from ``p`` (7,), updated in place.
-    Returns ``(cost, JtJ (7, 7))``."""
+    Returns the cost."""
     n = obs.size
     res = np.empty(n)
     J = np.empty((n, 7))
@@ -230,7 +230,7 @@ def _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, iterations):
             lam *= 10.0
             if lam > 1e7:
                 break
-    return cost, A
+    return cost
 
 
 @numba.njit(cache=True, nogil=True)
@@ -300,16 +300,15 @@ def _select(p, h, w, fx, fy, cx, cy, b, H, margin, share, reach, max_lines):
 
 @numba.njit(cache=True, nogil=True)
 def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0, bright0, sigma0, wide):
-    """Fit from the pose ``p0`` = (X, Z, alpha, Y) (m, rad). Returns ``(ok, p (7,), cov (7, 7),
-    n_pixels, cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma)."""
+    """Fit from the pose ``p0`` = (X, Z, alpha, Y) (m, rad). Returns ``(ok, p (7,), n_pixels,
+    cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma)."""
     h, w = image.shape
     p = np.empty(7)
-    cov = np.eye(7)
     p[:4] = p0
     ucols, pci, pr = _select(p, h, w, fx, fy, cx, cy, b, H, margin, MARGIN_SHARE, REACH, MAX_LINES)
     n = pr.size
     if n < 60:
-        return False, p, cov, n, 0.0
+        return False, p, n, 0.0
     obs = np.empty(n)
     for q in range(n):
         obs[q] = image[pr[q], ucols[pci[q]]]
@@ -339,29 +338,19 @@ def _refine(image, p0, alt_alpha, fx, fy, cx, cy, b, H, margin, positive, dark0,
         p[4] = dark0
         p[5] = bright0 if bright0 < _CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = max(sigma0, SIGMA_MIN)
-        c, _ = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS)
+        c = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, _START_ITERATIONS)
         if c < best_cost:
             best_cost = c
             best[:] = p
     p[:] = best
-    cost, A = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, ITERATIONS)
-    m_act = 0
-    res = np.empty(n)
-    _evaluate(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, res, np.empty((1, 7)), False)
-    for q in range(n):
-        if res[q] != 0.0:
-            m_act += 1
-    s2 = cost / max(m_act - 7, 1)
-    for k in range(7):
-        A[k, k] += 1e-12
-    cov = np.linalg.inv(A) * s2
-    return True, p, cov, n, cost
+    cost = _lm(p, obs, ucols, pci, pr, fx, fy, cx, cy, b, H, positive, ITERATIONS)
+    return True, p, n, cost
 
 
 def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, float, float], positive: bool,
                 dark: float, bright: float = 255.0, sigma: float = 0.4, alt_alpha: float | None = None,
                 wide: bool = True):
-    """Refine an edge-based pose of a clipped target on its pixels (module docstring).
+    """Refine an edge-based pose of a target on its pixels (module docstring).
 
     Args:
         image: ``(H, W)`` uint8 grey frame.
@@ -376,16 +365,18 @@ def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, flo
         wide: start from several poses around ``pose`` (scaled along the line of sight, turned
             by +-12 deg), for an uncertain start; else from ``pose`` (and ``alt_alpha``) alone.
     Returns:
-        ``None`` if the target has too few pixels, else ``(p, cov, n_pixels)``: ``p`` (7,) =
-        (X, Z, alpha, Y, dark, bright, sigma) and its covariance ``cov`` (7, 7) from the
-        Gauss-Newton normal matrix scaled by the residual variance.
+        ``None`` if the target has too few pixels or the fit is not finite, else
+        ``(p, n_pixels, cost)``: ``p`` (7,) = (X, Z, alpha, Y, dark, bright, sigma), the number
+        of pixels fitted and the final sum of squared (censored) residuals, grey levels^2. No
+        covariance: on clipped targets the normal matrix cannot see the flat directions
+        (module docstring), so callers keep the edge-based one.
     """
     pose = np.asarray(pose, np.float64)
     alt = float(pose[2] if alt_alpha is None else alt_alpha)
-    ok, p, cov, n, cost = _refine(image, pose, alt, float(camera.fx), float(camera.fy),
+    ok, p, n, cost = _refine(image, pose, alt, float(camera.fx), float(camera.fy),
                             float(camera.cx), float(camera.cy), float(target.bar_width),
                             float(target.bar_height), float(target.margin), bool(positive), float(dark), float(bright),
                             float(sigma), bool(wide))
-    if not ok or not np.all(np.isfinite(p)) or not np.all(np.isfinite(cov)):
+    if not ok or not np.all(np.isfinite(p)):
         return None
-    return p, cov, n, cost
+    return p, n, cost

@@ -81,16 +81,8 @@ def _speed_frames(camera, n, rng, n_targets=1, with_markers=True):
 
 
 def _time(fn, frames, repeats):
-    per = []
-    for f in frames:
-        fn(f)
-        best = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            fn(f)
-            best.append(time.perf_counter() - t0)
-        per.append(statistics.median(best))
-    return 1000.0 * statistics.median(per)
+    """Median ms per frame of ``fn`` alone, ``repeats`` calls in a row per frame (warm caches)."""
+    return _time_interleaved({"fn": fn}, frames, repeats)["fn"]
 
 
 def _time_interleaved(fns: dict, frames, repeats) -> dict:
