@@ -40,7 +40,7 @@ class EdgeMeasurements:
     ``edges_sigma`` (4,): their standard errors. ``top_y``/``bottom_y`` (2,):
     y of the bar tops/bottoms at the bar centre columns ``bar_cx`` (2,);
     ``top_sigma``/``bottom_sigma`` (2,). ``rows`` (first, last) image rows used
-    for the vertical edges. ``points`` maps names to ``(N, 2)`` edge points for
+    for the vertical edges. :attr:`points` maps names to ``(N, 2)`` edge points for
     drawing.
     """
 
@@ -52,13 +52,24 @@ class EdgeMeasurements:
     top_sigma: np.ndarray
     bottom_sigma: np.ndarray
     rows: tuple[int, int]
-    points: dict = field(default_factory=dict, compare=False, repr=False)
     height_sign: int = 0  # thesis tie-break: sign of (h2 - h1) averaged over each bar's columns
+    #: (x (n, 4), rows (n,), cols (m,), y (m,)): the edge points measured, for ``points``
+    _raw: tuple | None = field(default=None, compare=False, repr=False)
 
     @property
     def bar_heights(self) -> np.ndarray:
         """(h1, h2) pixel heights of the left and right bar at their centres."""
         return self.bottom_y - self.top_y
+
+    @property
+    def points(self) -> dict:
+        """``{"vertical": (4n, 2), "horizontal": (m, 2)}`` (x, y) edge points measured, for
+        drawing."""
+        if self._raw is None:
+            return {}
+        xs, rows, xcol, ys = self._raw
+        return {"vertical": np.stack([xs.ravel(), np.repeat(rows, xs.shape[1]).astype(float)], 1),
+                "horizontal": np.stack([xcol, ys], 1)}
 
 
 def _rough_ends(image: np.ndarray, st: Stack, col: int, thr: float) -> tuple[int, int]:
@@ -157,9 +168,8 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
     diff = mean_h[1] - mean_h[0]
     return EdgeMeasurements(edges, sig, np.array(cxs), np.array(tops), np.array(bots),
                             np.full(2, 0.5 / math.sqrt(3.0)), np.full(2, 0.5 / math.sqrt(3.0)),
-                            (int(rows[0]), int(rows[-1])),
-                            {"vertical": np.stack([xs.ravel(), np.repeat(rows, 4)], 1)},
-                            0 if abs(diff) < 1e-9 else (1 if diff > 0 else -1))
+                            (int(rows[0]), int(rows[-1])), 0 if abs(diff) < 1e-9 else (1 if diff > 0 else -1),
+                            (xs, rows, np.zeros(0), np.zeros(0)))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -370,42 +380,84 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
     a straight line fitted per bar and side, evaluated at the bar's centre
     column. Returns pixel coordinates (undistorted when the camera has distortion).
     """
-    h, w = image.shape
     nr = st.rows.size
     e = max(1, nr // 8) if nr >= 8 else 0
     rows = st.rows[e:nr - e] if nr - 2 * e >= 3 else st.rows
-    n = rows.size
     bounds = np.asarray(st.bounds, np.float64)
-    xs = _vertical_edges(image, rows, bounds, bool(st.positive), _L)  # (n, 4)
-    # saturated targets: a clipped erf model with blur and levels shared by the four edges
-    clipped, pc = _fit_bar_profile(image, rows, bounds, xs.mean(axis=0), bool(st.positive))
-    shift = pc[:4] - xs.mean(axis=0) if clipped else None
-    xs = _undistort_vertical(camera, xs, rows)
-    edges, sd_v, sd_fallback = _column_stats(xs)
-    if clipped:
-        edges = edges + shift
-    # tops and bottoms: the top (bottom) line of both bars is one straight image line
-    cxs = 0.5 * (edges[0::2] + edges[1::2])
     ends = st.ends
     if not ends:
         thr = 0.5 * (st.dark + st.bright)
-        ends = [_rough_ends(image, st, int(np.clip(round(c), 0, w - 1)), thr) for c in cxs]
-    ccat, grp, ys = _horizontal_edges(image, edges, cxs, np.asarray(ends, np.int64), bool(st.positive), _L)
+        cx0 = 0.5 * (bounds[:2].sum() - 1.0), 0.5 * (bounds[2:].sum() - 1.0)
+        ends = [_rough_ends(image, st, int(np.clip(round(c), 0, image.shape[1] - 1)), thr) for c in cx0]
+    ends = np.asarray(ends, np.int64)
+    if not camera.has_distortion:
+        edges, sd_e, cxs, icpt, sig, xs, xcol, ys = _subpixel(image, rows, bounds, ends, bool(st.positive))
+    else:  # the same stages, with the measured points undistorted in between
+        xs, shift = _vertical_stage(image, rows, bounds, bool(st.positive))
+        xs = _undistort_vertical(camera, xs, rows)
+        edges, sd_e, cxs, ccat, grp, ys, sd_fallback = _horizontal_stage(image, xs, shift, ends, bool(st.positive))
+        und = camera.undistort_points(np.stack([ccat.astype(float), ys], 1))
+        xcol, ys = und[:, 0].copy(), und[:, 1].copy()
+        icpt, sig = _line_fits(grp, xcol, cxs, ys, sd_fallback)
+    return EdgeMeasurements(edges, sd_e, cxs, icpt[:2], icpt[2:], sig[:2], sig[2:], (int(rows[0]), int(rows[-1])),
+                            _raw=(xs, rows, xcol, ys))
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertical_stage(image, rows, bounds, positive):
+    """Vertical edges of :func:`subpixel_edges` on ``rows`` (n,): ``(xs (n, 4), shift (7,))``,
+    the centroid edges per row and, on a clipped blurred target, the shift (px) of the
+    clipped-erf edges of the row-mean profile (:func:`_fit_bar_profile`) from their mean
+    followed by that fit's blur sd (px) and unclipped bright and dark levels (all NaN when
+    the profile fit is not used)."""
+    xs = _vertical_edges(image, rows, bounds, positive, _L)
+    mean = np.empty(4)
+    for k in range(4):
+        mean[k] = xs[:, k].mean()
+    clipped, pc = _fit_bar_profile(image, rows, bounds, mean, positive)
+    shift = np.full(7, np.nan)
     if clipped:
-        e_arr = np.asarray(ends, np.float64)
-        hbar = float(min(e_arr[0, 1] - e_arr[0, 0] + 1, e_arr[1, 1] - e_arr[1, 0] + 1))
-        ys = _refine_horizontal_clipped(image, ccat, grp, ys, bool(st.positive), hbar, 0.25 * hbar,
-                                        float(pc[4]), float(pc[5]), float(pc[6]))
-    xcol = ccat.astype(float)
-    if camera.has_distortion:
-        und = camera.undistort_points(np.stack([xcol, ys], 1))
-        xcol, ys = und[:, 0], und[:, 1]
-    # straight line per (side, bar) group, evaluated at the bar centre column (closed form)
+        for k in range(4):
+            shift[k] = pc[k] - mean[k]
+        shift[4:] = pc[4:]
+    return xs, shift
+
+
+@numba.njit(cache=True, nogil=True)
+def _horizontal_stage(image, xs, shift, ends, positive):
+    """Edge positions (4,) and their standard errors from the per-row ``xs`` (n, 4) (plus
+    ``shift`` (7,) from :func:`_vertical_stage` on clipped targets), the bar centre columns
+    (2,), then the top and bottom points of both bars around their rough ``ends`` (2, 2).
+
+    Returns ``(edges, sd_edges, cxs, cols (m,), group (m,), y (m,), sd_fallback)``."""
+    edges, sd_v, sd_fallback = _column_stats(xs)
+    clipped = not np.isnan(shift[0])
+    if clipped:
+        for k in range(4):
+            edges[k] += shift[k]
+    n = xs.shape[0]
+    sd_e = sd_v / math.sqrt(max(n, 1))
+    cxs = np.empty(2)
+    cxs[0] = 0.5 * (edges[0] + edges[1])
+    cxs[1] = 0.5 * (edges[2] + edges[3])
+    ccat, grp, ys = _horizontal_edges(image, edges, cxs, ends, positive, _L)
+    if clipped:
+        hbar = float(min(ends[0, 1] - ends[0, 0] + 1, ends[1, 1] - ends[1, 0] + 1))
+        ys = _refine_horizontal_clipped(image, ccat, grp, ys, positive, hbar, 0.25 * hbar, shift[4], shift[5],
+                                        shift[6])
+    return edges, sd_e, cxs, ccat, grp, ys, sd_fallback
+
+
+@numba.njit(cache=True, nogil=True)
+def _subpixel(image, rows, bounds, ends, positive):
+    """:func:`subpixel_edges` for an undistorted camera as one compiled call: the three
+    stages (:func:`_vertical_stage`, :func:`_horizontal_stage`, :func:`_line_fits`).
+    Returns ``(edges (4,), sd (4,), cxs (2,), icpt (4,), sig (4,), xs (n, 4), cols (m,), y (m,))``."""
+    xs, shift = _vertical_stage(image, rows, bounds, positive)
+    edges, sd_e, cxs, ccat, grp, ys, sd_fallback = _horizontal_stage(image, xs, shift, ends, positive)
+    xcol = ccat.astype(np.float64)
     icpt, sig = _line_fits(grp, xcol, cxs, ys, sd_fallback)
-    return EdgeMeasurements(edges, sd_v / math.sqrt(max(n, 1)), cxs, icpt[:2].copy(), icpt[2:].copy(),
-                            sig[:2].copy(), sig[2:].copy(), (int(rows[0]), int(rows[-1])),
-                            {"vertical": np.stack([xs.ravel(), np.repeat(rows, 4).astype(float)], 1),
-                             "horizontal": np.stack([xcol, ys], 1)})
+    return edges, sd_e, cxs, icpt, sig, xs, xcol, ys
 
 
 # --- saturated targets: clipped, blurred-step (erf) edge model ------------------------------

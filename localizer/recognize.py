@@ -12,8 +12,8 @@ matching bar-gap-bar triple. Work per frame, in order of cost:
 3. per remaining hit, the fine search of the thesis -- which walks up and down
    line by line from the hit until no line matches -- over one small region of
    interest thresholded at the hit's own midway level; on each line the runs
-   around the hit's gap are found by walking out from it (:func:`_fine_scan`);
-   then the full verification (:func:`verify_stack`).
+   around the hit's gap are found by walking out from it (:func:`_fine_stack`);
+   then the full verification (:func:`_verify`).
 
 Hits inside a stack already found are not searched again (the thesis's grouping).
 The pixel loops are compiled with numba (``_``-prefixed kernels, cached in
@@ -29,7 +29,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import _near_equal, scan_lines, triple_levels
+from localizer.scan import _levels, _near_equal, _rle, _threshold, _triples, line_extrema
 from localizer.target import TargetSpec
 
 
@@ -73,7 +73,10 @@ class Stack:
 def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams,
                 stats: DetectionStats) -> tuple[list[Stack], list[Stack]]:
     """Coarse scan every ``coarse_step``-th row, check the hits' grey levels, fine-scan
-    around each plausible new hit and verify the stack found (:func:`verify_stack`).
+    around each plausible new hit and verify the stack found (:func:`_verify`).
+
+    The whole search runs in one compiled call (:func:`_recognize`); only the running
+    max / min of the coarse lines (OpenCV) and the packing of the results are Python.
 
     Returns ``(candidates, verified)``: every stack found, and the verified ones
     (with grey levels and bar ends filled in) top to bottom, left to right.
@@ -81,55 +84,173 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     h, w = image.shape
     n = int(p.coarse_step)
     coarse_rows = np.arange(0, h, n)
-    tri, lines, nruns = scan_lines(image, coarse_rows, p, int(p.threshold_window))
-    stats.rows_scanned += coarse_rows.size
-    stats.runs += nruns
-    if len(tri) == 0:
-        return [], []
-    # grey levels of every triple on its own line (§4.5.2 (2)): contrast between the runs,
-    # light margins, no bar-shaded run beyond a margin (five equal runs: a grating)
-    lv = triple_levels(lines, tri)
-    lo_ratio = target.active_height / target.active_width * camera.fy / camera.fx * (1.0 - p.aspect_tolerance)
-    seeds, top, bottom, thr_all, key = _coarse_seeds(
-        image, lv, tri.y, tri.x, tri.positive, float(p.min_contrast), float(p.min_contrast_ratio),
-        bool(p.reject_periodic), int(p.min_rows), int(p.max_row_gap), float(lo_ratio))
-    stats.seeds += int(seeds.size)
-    if seeds.size == 0:
-        return [], []
-    pos = tri.positive
-    # best-shaped triples first (the runs most nearly equal): where a margin, a bar and the
-    # gap pose as a triple of the other polarity, the true triple is then searched first
-    order = np.argsort(key, kind="stable")
-    seeds, top, bottom = seeds[order], top[order].tolist(), bottom[order].tolist()
+    lines = image[::n]
+    hi, lo = line_extrema(lines, int(p.threshold_window))
+    ratio = target.active_height / target.active_width * camera.fy / camera.fx
+    counts, rows, x, ci, cf = _recognize(
+        image, coarse_rows, np.ascontiguousarray(lines), hi, lo, int(p.contrast_window), float(p.local_contrast),
+        min(255, int(math.ceil(p.global_threshold))), int(p.min_bar_px), float(p.width_tolerance),
+        float(p.width_slack), float(p.max_edge_shift), float(p.min_margin_ratio), bool(p.reject_periodic),
+        float(p.periodic_tolerance), float(p.min_contrast), float(p.min_contrast_ratio), int(p.min_rows),
+        int(p.max_row_gap), ratio * (1.0 - p.aspect_tolerance), ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance),
+        float(p.uniformity), 2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) / camera.fy,
+        bool(p.check_margins), int(p.max_candidates), int(p.max_targets))
+    c = counts.tolist()
+    stats.rows_scanned += c[0]
+    stats.runs += c[1]
+    stats.seeds += c[2]
+    stats.candidates += c[3]
+    for reason, k in zip(_REASONS, c[4:]):
+        if k:
+            stats.rejected[reason] = stats.rejected.get(reason, 0) + k
     stacks: list[Stack] = []
     verified: list[Stack] = []
-    taken: list[tuple[int, int, int, int, bool, bool]] = []  # (row0, row1, x0, x1, positive, verified)
-    ys = tri.y.tolist()
-    xbs = tri.x.tolist()
-    g = 2 + int(p.max_row_gap)  # a hit this near a stack's end belongs to it (blurred end lines)
-    for k, ya, yb in zip(seeds.tolist(), top, bottom):
-        y = ys[k]
-        xb = xbs[k]
-        pk = bool(pos[k])
-        # skip hits inside a stack already searched: of the same polarity, or of either
-        # polarity once verified (a margin-bar-gap triple of a target looks like the other one)
-        if any(r0 - g <= y <= r1 + g and xb[1] < c1 and xb[2] > c0 and (pp == pk or vv)
-               for r0, r1, c0, c1, pp, vv in taken):
-            continue
-        if len(stacks) >= p.max_candidates or len(verified) >= p.max_targets:
-            break
-        st = _fine_scan(image, y, xb, pk, float(thr_all[k]), p, (ya, yb), stats)
-        if st is None:
-            continue
+    for (a, b, pos, ok, t0, b0, t1, b1), f in zip(ci.tolist(), cf.tolist()):
+        med = cf[len(stacks), :4]
+        if ok:
+            st = Stack(rows[a:b], x[a:b], bool(pos), f[4], f[5], ((t0, b0), (t1, b1)), med)
+            verified.append(st)
+        else:
+            st = Stack(rows[a:b], x[a:b], bool(pos), median_x=med)
         stacks.append(st)
-        stats.candidates += 1
-        v = verify_stack(image, camera, target, st, p, stats)
-        if v is not None:
-            verified.append(v)
-        taken.append((int(st.rows[0]), int(st.rows[-1]), int(st.x[:, 0].min()), int(st.x[:, 3].max()), pk,
-                       v is not None))
-    verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
+    if len(verified) > 1:
+        verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
     return stacks, verified
+
+
+#: rejection reasons counted by :func:`_recognize`, by index (``stats.rejected`` keys)
+_REASONS = ("fine_scan", "min_rows", "aspect_ratio", "uniformity", "contrast", "bar_ends", "bar_heights",
+            "out_of_view", "margins")
+
+
+@numba.njit(cache=True, nogil=True)
+def _recognize(image, coarse_rows, lines, hi, lo, contrast_window, local_contrast, global_level, min_bar_px,
+               width_tolerance, width_slack, max_edge_shift, min_margin_ratio, reject_periodic,
+               periodic_tolerance, min_contrast, min_contrast_ratio, min_rows, max_row_gap, aspect_lo, aspect_hi,
+               uniformity, height_term, check_margins, max_candidates, max_targets):
+    """The search of :func:`find_stacks`, compiled as one call.
+
+    ``lines`` (k, W) are the coarse scan lines (image rows ``coarse_rows`` (k,)), ``hi`` /
+    ``lo`` their running max / min over the threshold window. In order: threshold, code
+    and search the lines (:func:`localizer.scan._threshold`, ``_rle``, ``_triples``), grey
+    levels and cheap tests of every triple (:func:`_coarse_seeds`), then per plausible hit,
+    best-shaped triples first (where a margin, a bar and the gap pose as a triple of the
+    other polarity, the true triple is then searched first) and unless it lies in a stack
+    already searched (of the same polarity, or of either polarity once verified: a
+    margin-bar-gap triple of a target looks like the other one), the fine search
+    (:func:`_fine_stack`) and the verification (:func:`_verify`).
+
+    Returns ``(counts, rows (N,), x (N, 4), ci (C, 8), cf (C, 6))`` for the ``C``
+    candidate stacks found: ``counts`` = rows scanned, runs, seeds, candidates, then the
+    rejections by :data:`_REASONS`; candidate ``c``'s rows are ``rows[a:b]`` with ``ci[c] =
+    (a, b, positive, verified, top1, bottom1, top2, bottom2)`` and ``cf[c] = (median x (4),
+    dark, bright)``.
+    """
+    counts = np.zeros(4 + 9, np.int64)
+    counts[0] = coarse_rows.size
+    rows_out = np.empty(64, np.int64)
+    x_out = np.empty((64, 4), np.int64)
+    ci = np.zeros((0, 8), np.int64)
+    cf = np.zeros((0, 6))
+    binary = _threshold(lines, hi, lo, contrast_window, local_contrast, global_level)
+    g, ln, line, xr = _rle(binary)
+    counts[1] = ln.size
+    if ln.size < 5:
+        return counts, rows_out[:0], x_out[:0], ci, cf
+    idx, tx, reg = _triples(ln, xr, line, lines.shape[1], min_bar_px, width_tolerance, width_slack,
+                            max_edge_shift, min_margin_ratio, reject_periodic, periodic_tolerance)
+    nt = idx.size
+    if nt == 0:
+        return counts, rows_out[:0], x_out[:0], ci, cf
+    tline = np.empty(nt, np.int64)
+    ty = np.empty(nt, np.int64)
+    tpos = np.empty(nt, np.bool_)
+    for t in range(nt):
+        tline[t] = line[idx[t]]
+        ty[t] = coarse_rows[tline[t]]
+        tpos[t] = not g[idx[t]]
+    lv = _levels(lines, tline, reg)
+    seeds, top, bottom, thr_all, key = _coarse_seeds(image, lv, ty, tx, tpos, min_contrast, min_contrast_ratio,
+                                                     reject_periodic, min_rows, max_row_gap, aspect_lo)
+    ns = seeds.size
+    counts[2] = ns
+    if ns == 0:
+        return counts, rows_out[:0], x_out[:0], ci, cf
+    order = np.argsort(key, kind="mergesort")
+    nmax = min(ns, max_candidates)
+    ci = np.zeros((nmax, 8), np.int64)
+    cf = np.zeros((nmax, 6))
+    taken = np.empty((nmax, 6), np.int64)  # (row0, row1, x0, x1, positive, verified)
+    nc = 0
+    nv = 0
+    nrows = 0
+    gap = 2 + max_row_gap  # a hit this near a stack's end belongs to it (blurred end lines)
+    for o in range(ns):
+        s = order[o]
+        k = seeds[s]
+        y = ty[k]
+        pk = tpos[k]
+        skip = False
+        for j in range(nc):
+            if (taken[j, 0] - gap <= y <= taken[j, 1] + gap and tx[k, 1] < taken[j, 3] and tx[k, 2] > taken[j, 2]
+                    and (taken[j, 4] == pk or taken[j, 5] == 1)):
+                skip = True
+                break
+        if skip:
+            continue
+        if nc >= max_candidates or nv >= max_targets:
+            break
+        srows, sx, med, scanned = _fine_stack(image, y, tx[k, 0], tx[k, 1], tx[k, 2], tx[k, 3], pk, thr_all[k],
+                                              top[s], bottom[s], max_row_gap, min_bar_px, width_tolerance,
+                                              width_slack, max_edge_shift, min_margin_ratio)
+        counts[0] += scanned
+        if srows.size == 0:
+            counts[4] += 1
+            continue
+        counts[3] += 1
+        m = srows.size
+        while nrows + m > rows_out.size:
+            grown = np.empty(2 * rows_out.size, np.int64)
+            grown[:nrows] = rows_out[:nrows]
+            rows_out = grown
+            xg = np.empty((2 * x_out.shape[0], 4), np.int64)
+            xg[:nrows] = x_out[:nrows]
+            x_out = xg
+        rows_out[nrows:nrows + m] = srows
+        x_out[nrows:nrows + m] = sx
+        code, dark, bright, t0, b0, t1, b1 = _verify(image, srows, med, pk, min_rows, aspect_lo, aspect_hi,
+                                                     uniformity, min_contrast, min_contrast_ratio, height_term,
+                                                     check_margins)
+        ci[nc, 0] = nrows
+        ci[nc, 1] = nrows + m
+        ci[nc, 2] = 1 if pk else 0
+        x0 = sx[0, 0]
+        x1 = sx[0, 3]
+        for i in range(m):
+            x0 = min(x0, sx[i, 0])
+            x1 = max(x1, sx[i, 3])
+        taken[nc, 0] = srows[0]
+        taken[nc, 1] = srows[m - 1]
+        taken[nc, 2] = x0
+        taken[nc, 3] = x1
+        taken[nc, 4] = 1 if pk else 0
+        taken[nc, 5] = 1 if code == 0 else 0
+        for c in range(4):
+            cf[nc, c] = med[c]
+        if code == 0:
+            ci[nc, 3] = 1
+            ci[nc, 4] = t0
+            ci[nc, 5] = b0
+            ci[nc, 6] = t1
+            ci[nc, 7] = b1
+            cf[nc, 4] = dark
+            cf[nc, 5] = bright
+            nv += 1
+        else:
+            counts[4 + code] += 1
+        nrows += m
+        nc += 1
+    return counts, rows_out[:nrows], x_out[:nrows], ci[:nc], cf[:nc]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -331,10 +452,11 @@ def _fine_rows(image, r0, r1, c0, c1, thr, positive, xg, xa, xb1, xb2, xc, tol, 
     return ok, bnd
 
 
-def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, p: DetectorParams,
-               span: tuple[int, int], stats: DetectionStats) -> Stack | None:
-    """Fine search (§4.4.1) around the coarse hit at row ``y`` with run boundaries ``xb`` (4,),
-    over the rows ``span`` (exclusive bounds, from :func:`_coarse_seeds`).
+@numba.njit(cache=True, nogil=True)
+def _fine_stack(image, y, xa, xb1, xb2, xc, positive, thr, span0, span1, max_row_gap, min_bar_px,
+                width_tolerance, width_slack, max_edge_shift, min_margin_ratio):
+    """Fine search (§4.4.1) around the coarse hit at row ``y`` with run boundaries ``xa, xb1,
+    xb2, xc``, over the rows ``span0:span1`` (from :func:`_coarse_seeds`).
 
     Every line of a region of interest around the hit is thresholded at ``thr``
     (midway between the hit's dark and bright levels, §4.4.2); on each line the
@@ -343,24 +465,10 @@ def _fine_scan(image: np.ndarray, y: int, xb: list, positive: bool, thr: float, 
     half a bar of the hit's boundaries (the bars' vertical edges are vertical
     in the image of a level camera) (:func:`_fine_rows`). The connected run of matching lines
     through the hit (at most ``max_row_gap`` lines missing in a row) is the stack;
-    the region grows while the stack reaches its top or bottom line (:func:`_fine_stack`).
-    """
-    rows, x, med, scanned = _fine_stack(image, int(y), int(xb[0]), int(xb[1]), int(xb[2]), int(xb[3]),
-                                        bool(positive), float(thr), int(span[0]), int(span[1]),
-                                        int(p.max_row_gap), int(p.min_bar_px), float(p.width_tolerance),
-                                        float(p.width_slack), float(p.max_edge_shift), float(p.min_margin_ratio))
-    stats.rows_scanned += int(scanned)
-    if rows.size == 0:
-        stats.reject("fine_scan")
-        return None
-    return Stack(rows=rows, x=x, positive=positive, median_x=med)
+    the region grows while the stack reaches its top or bottom line.
 
-
-@numba.njit(cache=True, nogil=True)
-def _fine_stack(image, y, xa, xb1, xb2, xc, positive, thr, span0, span1, max_row_gap, min_bar_px,
-                width_tolerance, width_slack, max_edge_shift, min_margin_ratio):
-    """The region loop of :func:`_fine_scan`. Returns ``(rows (n,), x (n, 4), median_x (4,),
-    rows_scanned)``; ``n`` is 0 when no matching line connects to the hit's row ``y``."""
+    Returns ``(rows (n,), x (n, 4), median_x (4,), rows_scanned)``; ``n`` is 0 when no
+    matching line connects to the hit's row ``y``."""
     h, w = image.shape
     width = xc - xa
     m = width / 3.0
@@ -491,14 +599,10 @@ def _count_shade(image, r0, r1, c0, c1, thr, light):
     return n
 
 
-#: rejection reasons of :func:`_verify_grey`, by its return code
-_VERIFY_REASONS = ("", "uniformity", "contrast", "bar_ends", "bar_heights", "out_of_view", "margins")
-
-
 @numba.njit(cache=True, nogil=True)
 def _verify_grey(image, r0, r1, nr, ra, rb, xb, positive, uniformity, min_contrast, min_contrast_ratio,
                  height_term, check_margins):
-    """The grey-level part of :func:`verify_stack` for the stack on rows ``r0..r1`` (``nr``
+    """The grey-level part of :func:`_verify` for the stack on rows ``r0..r1`` (``nr``
     rows) with median run boundaries ``xb`` (4,), its segments sampled on rows ``ra:rb``.
 
     Uniform segments (``3.3 sd`` of the non-boundary pixels at most ``uniformity``),
@@ -506,7 +610,8 @@ def _verify_grey(image, r0, r1, nr, ra, rb, xb, positive, uniformity, min_contra
     column near the stack's ends, bar heights differing by at most ``height_term * h^2``
     plus slack (``height_term = 2 (b / H) sin(max_alpha) / fy``), and (``check_margins``)
     the blank margins above and below both bars. Returns ``(code, dark, bright, top1,
-    bottom1, top2, bottom2)``; ``code`` 0 = passed, else an index into ``_VERIFY_REASONS``.
+    bottom1, top2, bottom2)``; ``code`` 0 = passed, else 1 uniformity, 2 contrast, 3 bar ends, 4 bar
+    heights, 5 out of view, 6 margins.
     """
     h, w = image.shape
     xi = np.empty(4, np.int64)
@@ -561,43 +666,29 @@ def _verify_grey(image, r0, r1, nr, ra, rb, xb, positive, uniformity, min_contra
     return 0, dark, bright, t0, b0, t1, b1
 
 
-def verify_stack(image: np.ndarray, camera: Camera, target: TargetSpec, st: Stack, p: DetectorParams,
-                 stats: DetectionStats) -> Stack | None:
-    """Pattern verification (§4.5.2) on the grey image; returns the stack with its
-    grey levels and rough bar ends filled in, or None (the reason is counted in ``stats``).
-
-    (1) minimum height (``min_rows``) and aspect ratio; (2) uniform grey within
-    each segment (spread of non-boundary pixels, ``3.3 sd`` as a robust range,
-    at most ``uniformity``; boundary = up to 2 px at each end, the thesis's
-    5-pixel edge transition) and contrast between adjacent segments; (3)
-    connectivity is built into the stack. Also, with ``check_margins``: the
-    blank margin above and below each bar.
-    """
-    h, w = image.shape
-    nr = st.n_rows
-    if nr < p.min_rows:
-        stats.reject("min_rows")
-        return None
-    xb = st.bounds
-    width = xb[3] - xb[0]
-    ratio = target.active_height / target.active_width * camera.fy / camera.fx
-    lo = ratio * (1.0 - p.aspect_tolerance)
-    hi = ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance)
-    if not lo <= nr / width <= hi:
-        stats.reject("aspect_ratio")
-        return None
-    r0, r1 = int(st.rows[0]), int(st.rows[-1])
+@numba.njit(cache=True, nogil=True)
+def _verify(image, rows, xb, positive, min_rows, aspect_lo, aspect_hi, uniformity, min_contrast,
+            min_contrast_ratio, height_term, check_margins):
+    """Pattern verification (§4.5.2) of the stack on ``rows`` (n,) with median run boundaries
+    ``xb`` (4,): (1) minimum height (``min_rows``) and aspect ratio (rows spanned / width
+    within ``aspect_lo .. aspect_hi``); (2) uniform grey within each segment (spread of
+    non-boundary pixels, ``3.3 sd`` as a robust range, at most ``uniformity``; boundary = up
+    to 2 px at each end, the thesis's 5-pixel edge transition) and contrast between adjacent
+    segments (:func:`_verify_grey`); (3) connectivity is built into the stack. Also, with
+    ``check_margins``: the blank margin above and below each bar. Returns ``(code, dark, bright,
+    top1, bottom1, top2, bottom2)``, ``code`` 0 = verified, else an index into ``_REASONS``
+    (1 = min_rows, 2 = aspect_ratio, 3.. = :func:`_verify_grey`'s codes + 2)."""
+    r0, r1 = rows[0], rows[rows.size - 1]
+    nr = r1 - r0 + 1
+    if nr < min_rows:
+        return 1, 0.0, 0.0, 0, 0, 0, 0
+    ratio = nr / (xb[3] - xb[0])
+    if not (aspect_lo <= ratio <= aspect_hi):
+        return 2, 0.0, 0.0, 0, 0, 0, 0
     e = max(1, nr // 8)  # skip rows near the bar ends (blur, slanted tops)
     ra, rb = r0 + e, r1 + 1 - e
     if rb - ra < 2:
-        stats.reject("min_rows")
-        return None
-    code, dark, bright, t0, b0, t1, b1 = _verify_grey(
-        image, r0, r1, nr, ra, rb, np.asarray(xb, np.float64), bool(st.positive), float(p.uniformity),
-        float(p.min_contrast), float(p.min_contrast_ratio),
-        2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) / camera.fy, bool(p.check_margins))
-    if code:
-        stats.reject(_VERIFY_REASONS[code])
-        return None
-    ends = ((int(t0), int(b0)), (int(t1), int(b1)))
-    return Stack(st.rows, st.x, st.positive, dark, bright, tuple(ends), xb)
+        return 1, 0.0, 0.0, 0, 0, 0, 0
+    code, dark, bright, t0, b0, t1, b1 = _verify_grey(image, r0, r1, nr, ra, rb, xb, positive, uniformity,
+                                                      min_contrast, min_contrast_ratio, height_term, check_margins)
+    return (code + 2 if code else 0), dark, bright, t0, b0, t1, b1

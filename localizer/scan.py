@@ -29,14 +29,20 @@ def threshold_lines(lines: np.ndarray, p: DetectorParams, window: int) -> np.nda
     contrast; in flat stretches (the inside of a bar wider than the window) the
     line's own thesis threshold is used (:func:`_threshold`).
     """
-    import cv2
-
     lines = np.ascontiguousarray(lines)
-    kernel = np.ones((1, int(window)), np.uint8)
-    hi = cv2.dilate(lines, kernel, borderType=cv2.BORDER_REPLICATE)
-    lo = cv2.erode(lines, kernel, borderType=cv2.BORDER_REPLICATE)
+    hi, lo = line_extrema(lines, window)
     return _threshold(lines, hi, lo, int(p.contrast_window), float(p.local_contrast),
                       min(255, int(math.ceil(p.global_threshold))))
+
+
+def line_extrema(lines: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Running max and min of each line of ``lines`` (k, W) uint8 over ``window`` pixels
+    centred on each pixel (OpenCV dilation / erosion, edges replicated): two ``(k, W)`` uint8."""
+    import cv2
+
+    kernel = np.ones((1, int(window)), np.uint8)
+    return (cv2.dilate(lines, kernel, borderType=cv2.BORDER_REPLICATE),
+            cv2.erode(lines, kernel, borderType=cv2.BORDER_REPLICATE))
 
 
 @numba.njit(cache=True, nogil=True)
