@@ -125,8 +125,8 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
     est = exact_pose(m, camera, target, v.positive, floor)
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
-        sd = np.sqrt(np.abs(np.diag(est.covariance)))
-        uncertain = bool(sd[2] > WIDE_SD_ALPHA or sd[0] > WIDE_SD_RANGE * est.distance)
+        c = est.covariance
+        uncertain = bool(abs(c[2, 2]) > WIDE_SD_ALPHA ** 2 or abs(c[0, 0]) > (WIDE_SD_RANGE * est.distance) ** 2)
         if p.photometric == "all" or saturated or (p.photometric == "auto" and uncertain):
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
             est = _photometric(img, camera, target, v, est, uncertain and saturated)

@@ -316,16 +316,27 @@ def _gauss_newton(p0, meas, wv, fx, fy, cx, cy, u, t, hh, sv, sh, iterations):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fit(meas, sig, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive, iterations):
-    """The numeric core of :func:`exact_pose`: measurements ``meas`` (8,) (edges, tops,
-    bottoms, px) with standard errors ``sig`` (8,), bar centre columns ``bar_cx`` (2,).
+def _fit(edges, edges_sd, top, bot, top_sd, bot_sd, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive,
+         iterations):
+    """The numeric core of :func:`exact_pose`: measurements (px) ``edges`` (4,), ``top``
+    and ``bot`` (2,) with standard errors ``edges_sd`` (4,), ``top_sd``, ``bot_sd`` (2,),
+    bar centre columns ``bar_cx`` (2,).
 
     Fits from the start of :func:`_initial` and from the other root of A.14 (unless
     within 0.5 deg), keeps the better minimum and widens its covariance by the
     separation of the other one as :func:`exact_pose` describes. Returns ``(status,
-    p (5,), chi2, cov (5, 5), (alpha1, alpha2), n_solutions)``; status 1 = fitted,
-    0 = singular normal equations, -1 = no fit stayed in front of the camera.
+    p (5,), chi2, cov (3, 3) over (d, beta, alpha), (alpha1, alpha2), n_solutions)``;
+    status 1 = fitted, 0 = singular normal equations, -1 = no fit stayed in front of
+    the camera.
     """
+    meas = np.empty(8)
+    sig = np.empty(8)
+    meas[:4] = edges
+    meas[4:6] = top
+    meas[6:] = bot
+    sig[:4] = edges_sd
+    sig[4:6] = top_sd
+    sig[6:] = bot_sd
     wv = 1.0 / np.sqrt(sig * sig + sigma_floor * sigma_floor)
     top = meas[4:6].copy()
     bot = meas[6:8].copy()
@@ -350,7 +361,7 @@ def _fit(meas, sig, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive, iterati
             st[2] = other
         p, chi2, A, status = _gauss_newton(st, meas, wv, fx, fy, cx, cy, u, t, 0.5 * H, sv, sh, iterations)
         if status == 0:
-            return 0, p0, 0.0, np.eye(5), cands, 0
+            return 0, p0, 0.0, np.eye(3), cands, 0
         if status < 0:
             continue
         nsols += 1
@@ -360,7 +371,7 @@ def _fit(meas, sig, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive, iterati
         else:
             q, chi2q = p, chi2
     if nsols == 0:
-        return -1, p0, 0.0, np.eye(5), cands, 0
+        return -1, p0, 0.0, np.eye(3), cands, 0
     scale = max(1.0, best_chi2 / (meas.size - 5))
     cov = np.linalg.inv(best_A) * scale
     if nsols > 1:
@@ -371,7 +382,24 @@ def _fit(meas, sig, bar_cx, sigma_floor, fx, fy, cx, cy, b, H, positive, iterati
             for i in range(3):
                 for j in range(3):
                     cov[i, j] += w * (q[i] - best_p[i]) * (q[j] - best_p[j])
-    return 1, best_p, best_chi2, cov, cands, nsols
+    # (X, Z, alpha) -> (d, beta, alpha): d = hypot(X, Z), beta = atan2(X, Z)
+    X, Z = best_p[0], best_p[1]
+    d = math.hypot(X, Z)
+    T = np.zeros((3, 3))
+    T[0, 0] = X / d
+    T[0, 1] = Z / d
+    T[1, 0] = Z / (d * d)
+    T[1, 1] = -X / (d * d)
+    T[2, 2] = 1.0
+    out = np.zeros((3, 3))  # T cov T^T
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                for m in range(3):
+                    acc += T[i, k] * cov[k, m] * T[j, m]
+            out[i, j] = acc
+    return 1, best_p, best_chi2, out, cands, nsols
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -398,20 +426,14 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     scaled up by the reduced chi-square when it exceeds one, mapped to
     (d, beta, alpha).
     """
-    meas = np.concatenate([m.edges_x, m.top_y, m.bottom_y]).astype(np.float64)
-    sig = np.concatenate([m.edges_sigma, m.top_sigma, m.bottom_sigma]).astype(np.float64)
-    status, p, chi2, cov_p, cands, nsols = _fit(
-        meas, sig, np.asarray(m.bar_cx, np.float64), float(sigma_floor), float(camera.fx), float(camera.fy),
-        float(camera.cx), float(camera.cy), float(target.bar_width), float(target.bar_height), bool(positive),
-        int(iterations))
+    status, p, chi2, cov, cands, nsols = _fit(
+        m.edges_x, m.edges_sigma, m.top_y, m.bottom_y, m.top_sigma, m.bottom_sigma, m.bar_cx, float(sigma_floor),
+        float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy), float(target.bar_width),
+        float(target.bar_height), bool(positive), int(iterations))
     if status == 0:
         raise np.linalg.LinAlgError("singular normal equations in the pose fit")
     if status < 0:
         raise np.linalg.LinAlgError("no pose fit converged")
-    dof = meas.size - p.size
-    X, Z, alpha = float(p[0]), float(p[1]), float(p[2])
-    d = math.hypot(X, Z)
-    T = np.array([[X / d, Z / d, 0.0], [Z / d ** 2, -X / d ** 2, 0.0], [0.0, 0.0, 1.0]])
-    cov = T @ cov_p[:3, :3] @ T.T
-    return PoseEstimate(d, math.atan2(X, Z), alpha, Z, X, float(p[3]), cov, tuple(cands), nsols > 1,
-                        float(p[4]), math.sqrt(chi2 / dof))
+    X, Z, alpha, Y, delta = p.tolist()
+    return PoseEstimate(math.hypot(X, Z), math.atan2(X, Z), alpha, Z, X, Y, cov, tuple(cands), nsols > 1,
+                        delta, math.sqrt(chi2 / 3.0))  # 8 measurements, 5 unknowns

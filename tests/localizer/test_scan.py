@@ -20,10 +20,12 @@ def _naive_runs(binary):
 
 def test_run_length_code_matches_naive():
     rng = np.random.default_rng(1)
-    binary = rng.random((7, 40)) < 0.4
-    runs = run_length_code(binary, np.arange(7) * 10)
-    got = list(zip(runs.g.tolist(), runs.l.tolist(), (runs.y // 10).tolist(), runs.x.tolist()))
-    assert got == _naive_runs(binary)
+    for width, p_white in ((40, 0.4), (13, 0.5), (1, 0.5), (70, 0.02), (517, 0.5)):
+        binary = rng.random((7, width)) < p_white
+        binary[3] = True  # one run over a whole line
+        runs = run_length_code(binary, np.arange(7) * 10)
+        got = list(zip(runs.g.tolist(), runs.l.tolist(), (runs.y // 10).tolist(), runs.x.tolist()))
+        assert got == _naive_runs(binary)
 
 
 def test_near_equal_allows_a_common_dark_side_shift_only():
