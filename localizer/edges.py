@@ -30,6 +30,7 @@ import numpy as np
 from localizer.camera import Camera
 from localizer.recognize import Stack
 from localizer.recognize import _rough_ends as rough_ends
+from localizer.smallmat import solve
 
 
 @dataclass(frozen=True)
@@ -660,12 +661,23 @@ def _lm_bar(prof, a, idx, p, positive, iterations):
     q = np.empty(7)
     Jq = np.empty((n, 7))
     rq = np.empty(n)
+    A = np.empty((7, 7))
+    g = np.empty(7)
     for it in range(iterations):
-        A = J.T @ J
-        g = J.T @ res
+        for a_ in range(7):  # J^T J and J^T res
+            for b_ in range(a_, 7):
+                acc = 0.0
+                for t in range(n):
+                    acc += J[t, a_] * J[t, b_]
+                A[a_, b_] = acc
+                A[b_, a_] = acc
+            acc = 0.0
+            for t in range(n):
+                acc += J[t, a_] * res[t]
+            g[a_] = acc
         for c in range(7):
             A[c, c] += lam * A[c, c] + 1e-9
-        step = np.linalg.solve(A, g)
+        step = solve(A, g)
         for c in range(7):
             q[c] = p[c] - step[c]
         q[4] = min(max(q[4], 0.05), 3.0)

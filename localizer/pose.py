@@ -15,6 +15,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.edges import EdgeMeasurements
+from localizer.smallmat import inverse, null_vector
 from localizer.target import TargetSpec
 
 
@@ -169,8 +170,8 @@ def _initial(ex, top, bot, bar_cx, fx, fy, cx, cy, b, H, positive):
         A[k, 1] = -tx[k]
         A[k, 2] = u[k]
         A[k, 3] = u[k] * tx[k]
-    _, _, vt = np.linalg.svd(A)
-    v = vt[-1] / math.hypot(vt[-1, 2], vt[-1, 3])
+    v = null_vector(A)
+    v = v / math.hypot(v[2], v[3])
     if v[1] < 0:
         v = -v
     beta_c = math.atan2(v[0], v[1])
@@ -373,7 +374,7 @@ def _fit(edges, edges_sd, top, bot, top_sd, bot_sd, bar_cx, sigma_floor, fx, fy,
     if nsols == 0:
         return -1, p0, 0.0, np.eye(3), cands, 0
     scale = max(1.0, best_chi2 / (meas.size - 5))
-    cov = np.linalg.inv(best_A) * scale
+    cov = inverse(best_A) * scale
     if nsols > 1:
         dchi = (chi2q - best_chi2) / scale
         if dchi < 16.0 and abs(q[2] - best_p[2]) > 1e-6:
