@@ -9,11 +9,11 @@ import time
 import numpy as np
 
 from localizer.camera import Camera
-from localizer.edges import subpixel_edges, thesis_edges
+from localizer.edges import makes_target, subpixel_edges, thesis_edges
 from localizer.observation import ImageMeasurements, TargetObservation
 from localizer.params import METHODS, DetectionStats, DetectorParams
 from localizer.photometric import refine_pose
-from localizer.pose import exact_pose, thesis_pose
+from localizer.pose import exact_measure, exact_pose, thesis_pose
 from localizer.recognize import find_stacks
 from localizer.target import TargetSpec
 
@@ -115,15 +115,25 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     return out
 
 
-def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, m, refine: bool = True):
-    """The exact pose from subpixel edges ``m`` (refined on the pixels as ``p.photometric``
-    says, when ``refine``), or None if the model does not fit them."""
+def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, refine: bool = True):
+    """Subpixel edges and the exact pose of the verified stack ``v`` (refined on the pixels as
+    ``p.photometric`` says, when ``refine``). Returns ``(edges, bar_cx, top, bottom, pose)``:
+    tuples of 4, 2, 2 and 2 pixel coordinates and the pose, None when the edges do not make
+    a target (:func:`localizer.edges.makes_target`) or the model does not fit them."""
     saturated = v.bright >= 250.0
     clipped = saturated or (v.dark <= 5.0)
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
-    est = exact_pose(m, camera, target, v.positive, floor)
+    if camera.has_distortion:
+        m = subpixel_edges(img, camera, v)
+        edges, cxs, top, bot = (tuple(a.tolist()) for a in (m.edges_x, m.bar_cx, m.top_y, m.bottom_y))
+        est = exact_pose(m, camera, target, v.positive, floor) if _makes_target(edges, top, bot, p) else None
+    else:  # one compiled call
+        edges, cxs, top, bot, est = exact_measure(img, camera, target, v, floor, p.width_tolerance, p.width_slack,
+                                                  p.min_rows)
+    if est is None:
+        return edges, cxs, top, bot, None
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
         c = est.covariance
         uncertain = bool(abs(c[2, 2]) > WIDE_SD_ALPHA ** 2 or abs(c[0, 0]) > (WIDE_SD_RANGE * est.distance) ** 2)
@@ -131,9 +141,15 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
             est = _photometric(img, camera, target, v, est, uncertain and saturated)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
-            and est.rms < MAX_FIT_RMS and np.all(np.isfinite(est.covariance))):
-        return None
-    return est
+            and est.rms < MAX_FIT_RMS and all(math.isfinite(c) for c in est.covariance.ravel().tolist())):
+        est = None
+    return edges, cxs, top, bot, est
+
+
+def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) -> bool:
+    """:func:`localizer.edges.makes_target` with the parameters ``p``."""
+    return makes_target(*edges, bottom[0] - top[0], bottom[1] - top[1], float(p.width_tolerance),
+                        float(p.width_slack), float(p.min_rows))
 
 
 def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool):
@@ -164,32 +180,26 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
 
 def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,
              p: DetectorParams) -> TargetObservation | None:
-    m = thesis_edges(img, camera, v, int(p.edge_window)) if method == "thesis" else subpixel_edges(img, camera, v)
-    # the measured edges must still make a target: three near-equal runs (§4.5.1's tolerances,
-    # without the allowance for a common edge shift: subpixel edges are far better than the
-    # thresholded runs) and two bars taller than the minimum height
-    e = m.edges_x.tolist()
-    widths = (e[1] - e[0], e[2] - e[1], e[3] - e[2])
-    if not (min(widths) > 0 and max(widths) - min(widths) <= p.width_tolerance * max(widths) + p.width_slack
-            and min(m.bar_heights.tolist()) >= 0.5 * p.min_rows):
-        return None
     if method == "thesis":
+        m = thesis_edges(img, camera, v, int(p.edge_window))
+        edges, cxs, top, bot = (tuple(a.tolist()) for a in (m.edges_x, m.bar_cx, m.top_y, m.bottom_y))
+        if not _makes_target(edges, top, bot, p):
+            return None
         est = thesis_pose(m, camera, target)
         # the thesis's verification lets some lettering through (strokes of an "m" or "n");
         # a target is reported only if the perspective-exact model fits its subpixel edges too
-        if _exact(img, camera, target, v, p, subpixel_edges(img, camera, v), refine=False) is None:
+        if _exact(img, camera, target, v, p, refine=False)[4] is None:
             return None
     else:
-        est = _exact(img, camera, target, v, p, m)
+        edges, cxs, top, bot, est = _exact(img, camera, target, v, p)
         if est is None:
             return None
-    h1, h2 = m.bar_heights.tolist()
-    ex = tuple(m.edges_x.tolist())
-    top, bottom = tuple(m.top_y.tolist()), tuple(m.bottom_y.tolist())
+    ex, bottom = edges, bot
+    h1, h2 = bottom[0] - top[0], bottom[1] - top[1]
     meas = ImageMeasurements(
         edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
         delta_y=0.5 * (h1 + h2), centre=(0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))),
-        bar_cx=tuple(m.bar_cx.tolist()), top_y=top, bottom_y=bottom, rows=(int(v.rows[0]), int(v.rows[-1])),
+        bar_cx=cxs, top_y=top, bottom_y=bottom, rows=(int(v.rows[0]), int(v.rows[-1])),
         n_rows=v.n_rows, dark=float(v.dark), bright=float(v.bright))
     return TargetObservation(
         distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),

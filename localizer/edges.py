@@ -356,6 +356,42 @@ def _line_fits(grp, xcol, cxs, ys, sd_fallback):
     return icpt, sig
 
 
+@numba.njit(cache=True, nogil=True)
+def _edge_rows(rows):
+    """The rows (n,) of a stack's ``rows`` on which the vertical edges are measured: all but
+    the first and last eighth (blur, slanted tops), unless fewer than 3 would be left."""
+    nr = rows.size
+    e = max(1, nr // 8) if nr >= 8 else 0
+    return rows[e:nr - e] if nr - 2 * e >= 3 else rows
+
+
+@numba.njit(cache=True, nogil=True)
+def makes_target(e0, e1, e2, e3, h1, h2, width_tolerance, width_slack, min_rows):
+    """Whether measured edges ``e0..e3`` and bar heights ``h1``, ``h2`` (px) still make a
+    target: three near-equal runs (§4.5.1's tolerances, without the allowance for a common
+    edge shift: subpixel edges are far better than the thresholded runs) and two bars at
+    least half the minimum height."""
+    w0, w1, w2 = e1 - e0, e2 - e1, e3 - e2
+    hi = max(w0, w1, w2)
+    lo = min(w0, w1, w2)
+    return lo > 0 and hi - lo <= width_tolerance * hi + width_slack and min(h1, h2) >= 0.5 * min_rows
+
+
+def edge_inputs(image: np.ndarray, st: Stack) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`subpixel_edges` measures a stack on: ``(rows (n,), bounds (4,), ends (2, 2))``,
+    the stack's rows but the first and last eighth (blur, slanted tops), its median run
+    boundaries and its rough bar ends (top, bottom row per bar; found at the rough bar
+    centres for a stack that was not verified)."""
+    rows = _edge_rows(st.rows)
+    bounds = np.asarray(st.bounds, np.float64)
+    ends = st.ends
+    if not ends:
+        thr = 0.5 * (st.dark + st.bright)
+        cx0 = 0.5 * (bounds[:2].sum() - 1.0), 0.5 * (bounds[2:].sum() - 1.0)
+        ends = [_rough_ends(image, st, int(np.clip(round(c), 0, image.shape[1] - 1)), thr) for c in cx0]
+    return rows, bounds, np.asarray(ends, np.int64)
+
+
 def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurements:
     """Subpixel edges (gradient-peak centroid, :func:`_refine`) of a verified stack.
 
@@ -381,16 +417,7 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
     a straight line fitted per bar and side, evaluated at the bar's centre
     column. Returns pixel coordinates (undistorted when the camera has distortion).
     """
-    nr = st.rows.size
-    e = max(1, nr // 8) if nr >= 8 else 0
-    rows = st.rows[e:nr - e] if nr - 2 * e >= 3 else st.rows
-    bounds = np.asarray(st.bounds, np.float64)
-    ends = st.ends
-    if not ends:
-        thr = 0.5 * (st.dark + st.bright)
-        cx0 = 0.5 * (bounds[:2].sum() - 1.0), 0.5 * (bounds[2:].sum() - 1.0)
-        ends = [_rough_ends(image, st, int(np.clip(round(c), 0, image.shape[1] - 1)), thr) for c in cx0]
-    ends = np.asarray(ends, np.int64)
+    rows, bounds, ends = edge_inputs(image, st)
     if not camera.has_distortion:
         edges, sd_e, cxs, icpt, sig, xs, xcol, ys = _subpixel(image, rows, bounds, ends, bool(st.positive))
     else:  # the same stages, with the measured points undistorted in between

@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from localizer.camera import Camera
-from localizer.edges import EdgeMeasurements
+from localizer.edges import EdgeMeasurements, _edge_rows, _subpixel, makes_target
 from localizer.smallmat import inverse, null_vector
 from localizer.target import TargetSpec
 
@@ -98,7 +98,6 @@ def thesis_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec) -> Pose
     base = np.array([d, beta_p, alpha])
     s = float(m.edges_sigma[0])
     cols = []
-    inputs = [ex.copy() for _ in range(6)]
     for k in range(4):
         e = ex.copy()
         e[k] += s
@@ -112,7 +111,6 @@ def thesis_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec) -> Pose
         if (aa > 0) != (alpha > 0) and abs(alpha) > 1e-9:
             aa = alpha
         cols.append((np.array([dd, bb, aa]) - base))
-    del inputs
     J = np.stack(cols, axis=1)  # already scaled by one sigma
     cov = J @ J.T
     # the sign choice of 4.13 can flip the whole root: add the root spread when ambiguous
@@ -427,10 +425,14 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     scaled up by the reduced chi-square when it exceeds one, mapped to
     (d, beta, alpha).
     """
-    status, p, chi2, cov, cands, nsols = _fit(
-        m.edges_x, m.edges_sigma, m.top_y, m.bottom_y, m.top_sigma, m.bottom_sigma, m.bar_cx, float(sigma_floor),
-        float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy), float(target.bar_width),
-        float(target.bar_height), bool(positive), int(iterations))
+    fit = _fit(m.edges_x, m.edges_sigma, m.top_y, m.bottom_y, m.top_sigma, m.bottom_sigma, m.bar_cx,
+               float(sigma_floor), float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy),
+               float(target.bar_width), float(target.bar_height), bool(positive), int(iterations))
+    return _estimate(*fit)
+
+
+def _estimate(status, p, chi2, cov, cands, nsols) -> PoseEstimate:
+    """The :class:`PoseEstimate` of a :func:`_fit` result (raises ``LinAlgError`` on failure)."""
     if status == 0:
         raise np.linalg.LinAlgError("singular normal equations in the pose fit")
     if status < 0:
@@ -438,3 +440,64 @@ def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive
     X, Z, alpha, Y, delta = p.tolist()
     return PoseEstimate(math.hypot(X, Z), math.atan2(X, Z), alpha, Z, X, Y, cov, tuple(cands), nsols > 1,
                         delta, math.sqrt(chi2 / 3.0))  # 8 measurements, 5 unknowns
+
+
+def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sigma_floor: float,
+                  width_tolerance: float, width_slack: float, min_rows: float, iterations: int = 8):
+    """:func:`localizer.edges.subpixel_edges`, the target test of
+    :func:`localizer.edges.makes_target` and :func:`exact_pose` of the verified stack ``st``,
+    in one compiled call (:func:`_exact_kernel`), for a camera without lens distortion: the
+    per-target path of ``detect_targets``, where Python between the steps cost as much as
+    the steps.
+
+    Returns ``(edges, bar_cx, top, bottom, pose)``: tuples of pixel coordinates (4, 2, 2, 2)
+    and the :class:`PoseEstimate` (None when the edges do not make a target or the fit
+    fails).
+    """
+    (t0, b0), (t1, b1) = st.ends
+    status, v, cov = _exact_kernel(
+        image, st.rows, st.bounds, t0, b0, t1, b1, bool(st.positive), float(sigma_floor), float(camera.fx),
+        float(camera.fy), float(camera.cx), float(camera.cy), float(target.bar_width), float(target.bar_height),
+        int(iterations), float(width_tolerance), float(width_slack), float(min_rows))
+    v = v.tolist()
+    est = None
+    if status == 1:
+        est = PoseEstimate(v[10], v[11], v[12], v[13], v[14], v[15], cov, (v[17], v[18]), v[19] > 1, v[16],
+                           math.sqrt(v[20] / 3.0))  # 8 measurements, 5 unknowns
+    return tuple(v[:4]), (v[4], v[5]), (v[6], v[7]), (v[8], v[9]), est
+
+
+@numba.njit(cache=True, nogil=True)
+def _exact_kernel(image, stack_rows, bounds, t0, b0, t1, b1, positive, sigma_floor, fx, fy, cx, cy, b, H,
+                  iterations, width_tolerance, width_slack, min_rows):
+    """:func:`exact_measure`'s compiled body. Returns ``(status, v (21,), cov (3, 3))``:
+    status 1 = a pose, 0 = not a target or no fit; ``v`` = edges (4), bar centre columns
+    (2), tops (2), bottoms (2), d, beta, alpha, Z, X, Y, delta, the two A.14 roots, the
+    number of minima found and chi-square."""
+    ends = np.empty((2, 2), np.int64)
+    ends[0, 0], ends[0, 1], ends[1, 0], ends[1, 1] = t0, b0, t1, b1
+    rows = _edge_rows(stack_rows)
+    edges, sd_e, cxs, icpt, sig, _, _, _ = _subpixel(image, rows, bounds, ends, positive)
+    v = np.zeros(21)
+    v[:4] = edges
+    v[4:6] = cxs
+    v[6:10] = icpt
+    if not makes_target(edges[0], edges[1], edges[2], edges[3], icpt[2] - icpt[0], icpt[3] - icpt[1],
+                        width_tolerance, width_slack, min_rows):
+        return 0, v, np.eye(3)
+    status, p, chi2, cov, cands, nsols = _fit(edges, sd_e, icpt[:2], icpt[2:], sig[:2], sig[2:], cxs, sigma_floor,
+                                              fx, fy, cx, cy, b, H, positive, iterations)
+    if status != 1:
+        return 0, v, np.eye(3)
+    v[10] = math.hypot(p[0], p[1])
+    v[11] = math.atan2(p[0], p[1])
+    v[12] = p[2]
+    v[13] = p[1]
+    v[14] = p[0]
+    v[15] = p[3]
+    v[16] = p[4]
+    v[17] = cands[0]
+    v[18] = cands[1]
+    v[19] = nsols
+    v[20] = chi2
+    return 1, v, cov
