@@ -95,7 +95,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
     st = stats if stats is not None else DetectionStats()
     out: list[TargetObservation] = []
-    stacks, verified = find_stacks(img, camera, target, p, st)
+    stacks, verified = find_stacks(img, camera, target, p, st, keep_candidates=bool(p.debug_dir))
     for v in verified:
         try:
             obs = _measure(img, camera, target, v, method, p)

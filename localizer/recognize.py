@@ -21,6 +21,7 @@ The pixel loops are compiled with numba (``_``-prefixed kernels, cached in
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -71,30 +72,22 @@ class Stack:
 
 
 def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams,
-                stats: DetectionStats) -> tuple[list[Stack], list[Stack]]:
+                stats: DetectionStats, keep_candidates: bool = True) -> tuple[list[Stack], list[Stack]]:
     """Coarse scan every ``coarse_step``-th row, check the hits' grey levels, fine-scan
     around each plausible new hit and verify the stack found (:func:`_verify`).
 
     The whole search runs in one compiled call (:func:`_recognize`); only the running
     max / min of the coarse lines (OpenCV) and the packing of the results are Python.
 
-    Returns ``(candidates, verified)``: every stack found, and the verified ones
-    (with grey levels and bar ends filled in) top to bottom, left to right.
+    Returns ``(candidates, verified)``: every stack found (only the verified ones unless
+    ``keep_candidates``), and the verified ones (with grey levels and bar ends filled in)
+    top to bottom, left to right.
     """
-    h, w = image.shape
     n = int(p.coarse_step)
-    coarse_rows = np.arange(0, h, n)
     lines = image[::n]
     hi, lo = line_extrema(lines, int(p.threshold_window))
-    ratio = target.active_height / target.active_width * camera.fy / camera.fx
-    counts, rows, x, ci, cf = _recognize(
-        image, coarse_rows, np.ascontiguousarray(lines), hi, lo, int(p.contrast_window), float(p.local_contrast),
-        min(255, int(math.ceil(p.global_threshold))), int(p.min_bar_px), float(p.width_tolerance),
-        float(p.width_slack), float(p.max_edge_shift), float(p.min_margin_ratio), bool(p.reject_periodic),
-        float(p.periodic_tolerance), float(p.min_contrast), float(p.min_contrast_ratio), int(p.min_rows),
-        int(p.max_row_gap), ratio * (1.0 - p.aspect_tolerance), ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance),
-        float(p.uniformity), 2.0 * target.bar_width / target.bar_height * math.sin(p.max_alpha) / camera.fy,
-        bool(p.check_margins), int(p.max_candidates), int(p.max_targets))
+    counts, rows, x, ci, cf = _recognize(image, n, lines, hi, lo, *_search_args(
+        p, camera.fx, camera.fy, target.active_height, target.active_width, target.bar_width, target.bar_height))
     c = counts.tolist()
     stats.rows_scanned += c[0]
     stats.runs += c[1]
@@ -105,17 +98,31 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
             stats.rejected[reason] = stats.rejected.get(reason, 0) + k
     stacks: list[Stack] = []
     verified: list[Stack] = []
-    for (a, b, pos, ok, t0, b0, t1, b1), f in zip(ci.tolist(), cf.tolist()):
-        med = cf[len(stacks), :4]
+    for i, ((a, b, pos, ok, t0, b0, t1, b1), f) in enumerate(zip(ci.tolist(), cf.tolist())):
         if ok:
-            st = Stack(rows[a:b], x[a:b], bool(pos), f[4], f[5], ((t0, b0), (t1, b1)), med)
+            st = Stack(rows[a:b], x[a:b], pos == 1, f[4], f[5], ((t0, b0), (t1, b1)), cf[i, :4])
             verified.append(st)
-        else:
-            st = Stack(rows[a:b], x[a:b], bool(pos), median_x=med)
-        stacks.append(st)
+            stacks.append(st)
+        elif keep_candidates:
+            stacks.append(Stack(rows[a:b], x[a:b], pos == 1, median_x=cf[i, :4]))
     if len(verified) > 1:
         verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
     return stacks, verified
+
+
+@functools.lru_cache(maxsize=32)
+def _search_args(p: DetectorParams, fx: float, fy: float, active_height: float, active_width: float,
+                 bar_width: float, bar_height: float) -> tuple:
+    """The scalar arguments of :func:`_recognize` after ``hi, lo`` for parameters ``p`` (resolved),
+    a camera's focal lengths (px) and a target's geometry (m) (cached: ~30 conversions)."""
+    ratio = active_height / active_width * fy / fx  # rows / columns of a target facing the camera
+    return (int(p.contrast_window), float(p.local_contrast), min(255, int(math.ceil(p.global_threshold))),
+            int(p.min_bar_px), float(p.width_tolerance), float(p.width_slack), float(p.max_edge_shift),
+            float(p.min_margin_ratio), bool(p.reject_periodic), float(p.periodic_tolerance), float(p.min_contrast),
+            float(p.min_contrast_ratio), int(p.min_rows), int(p.max_row_gap), ratio * (1.0 - p.aspect_tolerance),
+            ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance), float(p.uniformity),
+            2.0 * bar_width / bar_height * math.sin(p.max_alpha) / fy, bool(p.check_margins),
+            int(p.max_candidates), int(p.max_targets))
 
 
 #: rejection reasons counted by :func:`_recognize`, by index (``stats.rejected`` keys)
@@ -124,13 +131,13 @@ _REASONS = ("fine_scan", "min_rows", "aspect_ratio", "uniformity", "contrast", "
 
 
 @numba.njit(cache=True, nogil=True)
-def _recognize(image, coarse_rows, lines, hi, lo, contrast_window, local_contrast, global_level, min_bar_px,
+def _recognize(image, step, lines, hi, lo, contrast_window, local_contrast, global_level, min_bar_px,
                width_tolerance, width_slack, max_edge_shift, min_margin_ratio, reject_periodic,
                periodic_tolerance, min_contrast, min_contrast_ratio, min_rows, max_row_gap, aspect_lo, aspect_hi,
                uniformity, height_term, check_margins, max_candidates, max_targets):
     """The search of :func:`find_stacks`, compiled as one call.
 
-    ``lines`` (k, W) are the coarse scan lines (image rows ``coarse_rows`` (k,)), ``hi`` /
+    ``lines`` (k, W) are the coarse scan lines (every ``step``-th image row), ``hi`` /
     ``lo`` their running max / min over the threshold window. In order: threshold, code
     and search the lines (:func:`localizer.scan._threshold`, ``_rle``, ``_triples``), grey
     levels and cheap tests of every triple (:func:`_coarse_seeds`), then per plausible hit,
@@ -147,7 +154,7 @@ def _recognize(image, coarse_rows, lines, hi, lo, contrast_window, local_contras
     dark, bright)``.
     """
     counts = np.zeros(4 + 9, np.int64)
-    counts[0] = coarse_rows.size
+    counts[0] = lines.shape[0]
     rows_out = np.empty(64, np.int64)
     x_out = np.empty((64, 4), np.int64)
     ci = np.zeros((0, 8), np.int64)
@@ -167,7 +174,7 @@ def _recognize(image, coarse_rows, lines, hi, lo, contrast_window, local_contras
     tpos = np.empty(nt, np.bool_)
     for t in range(nt):
         tline[t] = line[idx[t]]
-        ty[t] = coarse_rows[tline[t]]
+        ty[t] = step * tline[t]
         tpos[t] = not g[idx[t]]
     lv = _levels(lines, tline, reg)
     seeds, top, bottom, thr_all, key = _coarse_seeds(image, lv, ty, tx, tpos, min_contrast, min_contrast_ratio,
