@@ -30,7 +30,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import _levels, _near_equal, _rle, _threshold, _triples, line_extrema
+from localizer.scan import _levels, _line_extrema, _near_equal, _rle, _threshold, _triples
 from localizer.target import TargetSpec
 
 
@@ -76,17 +76,14 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     """Coarse scan every ``coarse_step``-th row, check the hits' grey levels, fine-scan
     around each plausible new hit and verify the stack found (:func:`_verify`).
 
-    The whole search runs in one compiled call (:func:`_recognize`); only the running
-    max / min of the coarse lines (OpenCV) and the packing of the results are Python.
+    The whole search runs in one compiled call (:func:`_recognize`); only the packing of
+    the results is Python.
 
     Returns ``(candidates, verified)``: every stack found (only the verified ones unless
     ``keep_candidates``), and the verified ones (with grey levels and bar ends filled in)
     top to bottom, left to right.
     """
-    n = int(p.coarse_step)
-    lines = image[::n]
-    hi, lo = line_extrema(lines, int(p.threshold_window))
-    counts, rows, x, ci, cf = _recognize(image, n, lines, hi, lo, *_search_args(
+    counts, rows, x, ci, cf = _recognize(image, int(p.coarse_step), int(p.threshold_window), *_search_args(
         p, camera.fx, camera.fy, target.active_height, target.active_width, target.bar_width, target.bar_height))
     c = counts.tolist()
     stats.rows_scanned += c[0]
@@ -113,7 +110,7 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
 @functools.lru_cache(maxsize=32)
 def _search_args(p: DetectorParams, fx: float, fy: float, active_height: float, active_width: float,
                  bar_width: float, bar_height: float) -> tuple:
-    """The scalar arguments of :func:`_recognize` after ``hi, lo`` for parameters ``p`` (resolved),
+    """The scalar arguments of :func:`_recognize` after ``window`` for parameters ``p`` (resolved),
     a camera's focal lengths (px) and a target's geometry (m) (cached: ~30 conversions)."""
     ratio = active_height / active_width * fy / fx  # rows / columns of a target facing the camera
     return (int(p.contrast_window), float(p.local_contrast), min(255, int(math.ceil(p.global_threshold))),
@@ -131,14 +128,14 @@ _REASONS = ("fine_scan", "min_rows", "aspect_ratio", "uniformity", "contrast", "
 
 
 @numba.njit(cache=True, nogil=True)
-def _recognize(image, step, lines, hi, lo, contrast_window, local_contrast, global_level, min_bar_px,
+def _recognize(image, step, window, contrast_window, local_contrast, global_level, min_bar_px,
                width_tolerance, width_slack, max_edge_shift, min_margin_ratio, reject_periodic,
                periodic_tolerance, min_contrast, min_contrast_ratio, min_rows, max_row_gap, aspect_lo, aspect_hi,
                uniformity, height_term, check_margins, max_candidates, max_targets):
     """The search of :func:`find_stacks`, compiled as one call.
 
-    ``lines`` (k, W) are the coarse scan lines (every ``step``-th image row), ``hi`` /
-    ``lo`` their running max / min over the threshold window. In order: threshold, code
+    The coarse scan lines are every ``step``-th image row, thresholded over ``window`` px
+    (:func:`localizer.scan.threshold_lines`). In order: threshold, code
     and search the lines (:func:`localizer.scan._threshold`, ``_rle``, ``_triples``), grey
     levels and cheap tests of every triple (:func:`_coarse_seeds`), then per plausible hit,
     best-shaped triples first (where a margin, a bar and the gap pose as a triple of the
@@ -153,6 +150,8 @@ def _recognize(image, step, lines, hi, lo, contrast_window, local_contrast, glob
     (a, b, positive, verified, top1, bottom1, top2, bottom2)`` and ``cf[c] = (median x (4),
     dark, bright)``.
     """
+    lines = image[::step]
+    hi, lo = _line_extrema(lines, window)
     counts = np.zeros(4 + 9, np.int64)
     counts[0] = lines.shape[0]
     rows_out = np.empty(64, np.int64)

@@ -66,3 +66,24 @@ def test_dim_target_next_to_bright_clutter():
                        rng=np.random.default_rng(2))
     obs = detect_targets(img, cam)
     assert len(obs) == 1 and abs(obs[0].distance - 4.0) < 0.02
+
+
+def test_line_extrema_match_opencv_dilate_and_erode():
+    """The compiled running max / min against OpenCV's 1-D dilation / erosion (edges
+    replicated): odd and even windows, windows longer than the line, strided lines."""
+    import cv2
+
+    from localizer.scan import line_extrema
+
+    rng = np.random.default_rng(3)
+    for window in (3, 4, 5, 32, 33, 65):
+        for width in (1, 7, 40, 512):
+            lines = rng.integers(0, 256, (6, width)).astype(np.uint8)
+            lines[2] = np.sort(lines[2])  # long monotone stretches
+            kernel = np.ones((1, window), np.uint8)
+            for view in (lines, lines[::2]):
+                hi, lo = line_extrema(view, window)
+                assert np.array_equal(hi, cv2.dilate(np.ascontiguousarray(view), kernel,
+                                                      borderType=cv2.BORDER_REPLICATE))
+                assert np.array_equal(lo, cv2.erode(np.ascontiguousarray(view), kernel,
+                                                     borderType=cv2.BORDER_REPLICATE))
