@@ -30,7 +30,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import _levels, _line_extrema, _near_equal, _rle, _threshold, _triples
+from localizer.scan import _copy, _levels, _line_extrema, _near_equal, _rle, _threshold, _triples
 from localizer.target import TargetSpec
 
 
@@ -150,7 +150,10 @@ def _recognize(image, step, window, contrast_window, local_contrast, global_leve
     (a, b, positive, verified, top1, bottom1, top2, bottom2)`` and ``cf[c] = (median x (4),
     dark, bright)``.
     """
-    lines = image[::step]
+    h, w = image.shape
+    lines = np.empty(((h + step - 1) // step, w), np.uint8)  # contiguous, so that loops vectorise
+    for i in range(lines.shape[0]):
+        _copy(image[i * step], lines[i])
     hi, lo = _line_extrema(lines, window)
     counts = np.zeros(4 + 9, np.int64)
     counts[0] = lines.shape[0]
