@@ -585,11 +585,12 @@ def _rough_ends(image, r0, r1, nr, col, thr, positive):
 @numba.njit(cache=True, nogil=True)
 def _mean_sd(image, r0, r1, c0, c1):
     """Mean and (population) standard deviation of ``image[r0:r1, c0:c1]`` (grey levels)."""
-    s = 0.0
-    ss = 0.0
+    s = 0
+    ss = 0
     for r in range(r0, r1):
-        for c in range(c0, c1):
-            v = float(image[r, c])
+        seg = image[r, c0:c1]
+        for c in range(seg.size):  # integer sums over a slice, so that it vectorises
+            v = np.int32(seg[c])
             s += v
             ss += v * v
     n = max((r1 - r0) * (c1 - c0), 1)

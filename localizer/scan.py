@@ -213,8 +213,9 @@ def _rle(binary):
         row = b8[r]
         cur = row[1:]
         prev = row[:w - 1]
+        dst = change[1:w]
         for c in range(w - 1):
-            change[c + 1] = cur[c] ^ prev[c]
+            dst[c] = cur[c] ^ prev[c]
         if j + w > cap:  # room for a line of one-pixel runs
             cap = max(2 * cap, j + w)
             g2 = np.empty(cap, np.bool_)
@@ -419,8 +420,9 @@ def _levels(lines, line, regions):
             if b <= a:
                 out[t, r] = np.nan
                 continue
+            seg = row[a:b]
             acc = 0
-            for c in range(a, b):
-                acc += row[c]
+            for c in range(seg.size):
+                acc += np.int32(seg[c])
             out[t, r] = acc / (b - a)
     return out
