@@ -218,18 +218,7 @@ def _rle(binary):
             dst[c] = cur[c] ^ prev[c]
         if j + w > cap:  # room for a line of one-pixel runs
             cap = max(2 * cap, j + w)
-            g2 = np.empty(cap, np.bool_)
-            g2[:j] = g[:j]
-            g = g2
-            ln2 = np.empty(cap, np.int64)
-            ln2[:j] = ln[:j]
-            ln = ln2
-            line2 = np.empty(cap, np.int64)
-            line2[:j] = line[:j]
-            line = line2
-            x2 = np.empty(cap, np.int64)
-            x2[:j] = x[:j]
-            x = x2
+            g, ln, line, x = _grown(g, j, cap), _grown(ln, j, cap), _grown(line, j, cap), _grown(x, j, cap)
         start = 0
         for q in range(nw):
             if words[q] == 0:
@@ -248,6 +237,14 @@ def _rle(binary):
         x[j] = start
         j += 1
     return g[:j], ln[:j], line[:j], x[:j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _grown(a, n, cap):
+    """A ``(cap,)`` array of ``a``'s dtype holding ``a[:n]``."""
+    out = np.empty(cap, a.dtype)
+    out[:n] = a[:n]
+    return out
 
 
 @dataclass(frozen=True)
