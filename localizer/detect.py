@@ -141,7 +141,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
             est = _photometric(img, camera, target, v, est, uncertain and saturated)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
-            and est.rms < MAX_FIT_RMS and all(math.isfinite(c) for c in est.covariance.ravel().tolist())):
+            and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
         est = None
     return edges, cxs, top, bot, est
 
