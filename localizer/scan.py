@@ -5,7 +5,10 @@ array): the coarse scan of §4.4.1 thresholds, codes and searches its
 ``H / N`` lines. The per-pixel and per-run loops are compiled with numba
 (``_``-prefixed kernels): numpy's per-call overhead (1-5 µs) would dominate on
 arrays this small. The first call in a fresh environment compiles them (cached
-in ``__pycache__`` afterwards).
+in ``__pycache__`` afterwards). The detector calls the kernels from inside one
+compiled search (:func:`localizer.recognize._recognize`); the Python functions here
+(:func:`threshold_lines`, :func:`run_length_code`, :func:`find_triples`,
+:func:`triple_levels`) run the same kernels on their own, for debug images and tests.
 """
 from __future__ import annotations
 
@@ -381,17 +384,6 @@ def _triples(l, x, line, width, min_bar_px, width_tolerance, width_slack, max_ed
                 reg[k, 6, 0] = x[i + 4]
                 reg[k, 6, 1] = x[i + 4] + l[i + 4]
     return idx, xs, reg
-
-
-def scan_lines(image: np.ndarray, rows: np.ndarray, p: DetectorParams, window: int):
-    """Threshold (:func:`threshold_lines`), code and search image ``rows`` (``(k,)``).
-
-    Returns ``(triples, lines, n_runs)`` with ``lines`` the ``(k, W)`` grey lines.
-    """
-    lines = image[rows]
-    binary = threshold_lines(lines, p, window)
-    runs = run_length_code(binary, rows)
-    return find_triples(runs, p), lines, int(runs.l.size)
 
 
 def triple_levels(lines: np.ndarray, tri: Triples) -> np.ndarray:
