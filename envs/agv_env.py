@@ -1,4 +1,4 @@
-"""The agvsim Gymnasium environment: a thin adapter over :class:`agvsim.episode.Episode`."""
+"""The agvsim Gymnasium environment: a thin adapter over :class:`agvsim.loop.closed_loop.ClosedLoop`."""
 from __future__ import annotations
 
 import math
@@ -9,6 +9,8 @@ import numpy as np
 from gymnasium import spaces
 
 from envs.config import EnvConfig
+from envs.tasks import TASKS
+from localizer.numeric import wrap_angle
 
 
 class AGVEnv(gym.Env):
@@ -22,9 +24,8 @@ class AGVEnv(gym.Env):
     an EKF. The agent sees only what the vehicle believes, never the true
     pose (unless ``localization="truth"``).
 
-    Tasks: ``goto`` drives from a start station to a goal station of the
-    route; ``localize`` (active localization) rewards keeping the estimate
-    close to the truth, so planners learn to seek targets.
+    Tasks (``task=``, :data:`envs.tasks.TASKS`):
+{tasks}
 
     ## Action space
     ``Box(-1, 1, (2,), float32)``: (forward speed, yaw rate) as fractions of
@@ -33,7 +34,7 @@ class AGVEnv(gym.Env):
 
     ## Observation space
     ``Dict``:
-    - ``pose``: ``Box((3,), float32)`` believed (x m, y m, θ rad), θ in (-π, π].
+    - ``pose``: ``Box((3,), float32)`` believed (x m, y m, θ rad), θ in [-π, π).
     - ``covariance``: ``Box((3, 3), float32)`` its covariance (m², m·rad, rad²).
     - ``goal``: ``Box((3,), float32)`` the goal in the believed vehicle frame:
       (forward m, left m, heading difference rad). Zeros for ``localize``.
@@ -62,9 +63,10 @@ class AGVEnv(gym.Env):
 
     ## Arguments
     ``gymnasium.make("agvsim/PlantFloor-v0", map=..., route=..., task=...,
-    odometry="typical", localization="ekf" | "odometry" | "truth",
-    camera_rate=4.0, camera_latency=0.25, observations="rendered" | "synthetic" |
-    "geometric", lens=16, lighting_randomization=0.0, observe_image=False,
+    odometry={odometry}, localization={localization},
+    camera_rate=4.0, camera_latency=0.25, observations={observations},
+    camera_mount=None | CameraMount | dict (None: the map's recommended mount),
+    lens={lenses}, lighting_randomization=0.0, observe_image=False,
     policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
     error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
@@ -98,8 +100,10 @@ class AGVEnv(gym.Env):
         self._kwargs = dict(kwargs)
         self.config = EnvConfig.from_kwargs(**kwargs)
         import agvsim
-        from agvsim.simulation import SimConfig
+        from agvsim.loop.closed_loop import LoopConfig
+        from agvsim.sensors import VisionConfig, make_source
         from agvsim.vehicle.encoders import OdometryErrorModel
+        from agvsim.vehicle.simulation import SimConfig
 
         self.map = agvsim.load_map(self.config.map)
         self.stations = self.map.route(self.config.route)
@@ -125,15 +129,15 @@ class AGVEnv(gym.Env):
             obs["image"] = spaces.Box(0, 255, (480, 512, 1), np.uint8)
         self.observation_space = spaces.Dict(obs)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
-        from agvsim.observe import VisionConfig, make_source
-
-        self.vision = VisionConfig(focal_mm=float(self.config.lens))
+        self.vision = VisionConfig(mount=self.config.camera_mount, focal_mm=float(self.config.lens)).for_map(self.map)
+        self._loop_config = LoopConfig(sim=self.sim_config, vision_config=self.vision,
+                                       camera_rate=self.config.camera_rate, latency=self.config.camera_latency)
         needs_camera = self.config.localization == "ekf" or self.config.observe_image
         # one observation source per env, reused across episodes: a rendered
         # source owns the (lazily created) GL context
         self._source = make_source(self.config.observations, self.map, self.vision) if needs_camera else None
+        self.task = TASKS[self.config.task](self.config)
         self._episode = None
-        self._goal = None
         self._view = None
         self._frame = None
         self._steps = 0
@@ -142,33 +146,24 @@ class AGVEnv(gym.Env):
     # -- Gymnasium API -------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        from agvsim.episode import Episode
+        from agvsim.loop.closed_loop import ClosedLoop
 
         rng = self.np_random
         ids = list(dict.fromkeys(s.id for s in self.stations))
         start_id = ids[int(rng.integers(len(ids)))]
         start = self.map.station(start_id)
-        goal = None
-        if self.config.task == "goto":
-            others = [i for i in ids if i != start_id]
-            goal = self.map.station(others[int(rng.integers(len(others)))])
-        self._goal = goal
-        if self._source is not None and hasattr(self._source, "conditions"):
-            spread = self.config.lighting_randomization
-            exposure = float(np.exp(rng.normal(0.0, spread))) if spread > 0 else 1.0
-            self._source.conditions = {**self._source.conditions, "exposure": exposure}
-        self._episode = Episode(self.map, start.pose, self.sim_config, rng,
-                                localization=self.config.localization, vision=self.vision,
-                                observations=self._source, camera_rate=self.config.camera_rate,
-                                latency=self.config.camera_latency,
-                                capture_frames=self.config.observe_image)
+        goal = self.task.draw_goal(self.map, ids, start_id, rng)
+        spread = self.config.lighting_randomization
+        if self._source is not None and spread > 0:
+            self._source.set_exposure(float(np.exp(rng.normal(0.0, spread))))
+        self._episode = ClosedLoop(self.map, start.pose, rng, self._loop_config, self._source,
+                                   localization=self.config.localization)
+        self.task.reset(self._episode)
         self._steps = 0
         self._frame = None
-        self._prev_goal_distance = self._goal_distance()
-        self._paths = {"true": [self._episode.true_pose], "odometry": [self._episode.odometry_pose],
-                       "estimate": [self._episode.believed_pose]}
-        pose = self._episode.believed_pose
-        obs = self._observation(pose, self._episode.covariance, np.zeros(2))
+        ep = self._episode
+        self._paths = {"true": [ep.true_pose], "odometry": [ep.odometry_pose], "estimate": [ep.believed_pose]}
+        obs = self._observation(ep.believed_pose, ep.covariance, np.zeros(2))
         info = self._info(accepted=0, rejected=0, collision=False)
         info["start_station"] = start_id
         info["goal_station"] = goal.id if goal is not None else None
@@ -183,35 +178,27 @@ class AGVEnv(gym.Env):
         if not np.all(np.isfinite(action)):
             raise ValueError(f"action must be finite, got {action}")
         v, w = np.clip(action, -1.0, 1.0) * self._limits
-        step = self._episode.step(float(v), float(w))
+        ep = self._episode
+        step = ep.step(float(v), float(w))
         self._steps += 1
-        if step.frame is not None:
-            self._frame = step.frame
-        for key, pose in (("true", self._episode.true_pose), ("odometry", self._episode.odometry_pose),
-                          ("estimate", step.believed_pose)):
+        if step.captured and ep.last_frame is not None:
+            self._frame = ep.last_frame
+        believed = ep.believed_pose
+        for key, pose in (("true", ep.true_pose), ("odometry", ep.odometry_pose), ("estimate", believed)):
             self._paths[key].append(pose)
         cfg = self.config
-        reward = -cfg.time_cost - cfg.collision_penalty * float(step.collided)
-        terminated = False
-        if cfg.task == "goto":
-            dist = self._goal_distance()
-            reward += self._prev_goal_distance - dist
-            self._prev_goal_distance = dist
-            terminated = dist <= cfg.goal_radius
-        else:
-            err = float(np.hypot(*(self._episode.true_pose[:2] - step.believed_pose[:2])))
-            reward += 1.0 / (1.0 + (err / cfg.error_scale) ** 2)
-        if cfg.terminate_on_collision and step.collided:
-            terminated = True
+        collided = step.sim.collided
+        reward = -cfg.time_cost - cfg.collision_penalty * float(collided) + self.task.reward(ep, step)
+        terminated = self.task.is_terminal(ep) or (cfg.terminate_on_collision and collided)
         truncated = False  # the step limit is gymnasium's TimeLimit (max_episode_steps)
-        obs = self._observation(step.believed_pose, step.covariance, step.wheel_speeds)
-        info = self._info(step.accepted, step.rejected, step.collided)
+        obs = self._observation(believed, ep.covariance, np.asarray(step.wheel_speeds))
+        info = self._info(step.accepted, step.rejected, collided)
         return obs, float(reward), bool(terminated), bool(truncated), info
 
     def render(self):
         if self.render_mode != "rgb_array" or self._episode is None:
             return None
-        from agvsim.views import TopDownView, Trajectory
+        from agvsim.analysis.topdown import TopDownView, Trajectory
 
         if self._view is None:
             self._view = TopDownView(self.map, pixels_per_metre=12.0, max_size=800)
@@ -229,13 +216,8 @@ class AGVEnv(gym.Env):
 
     def _camera_fov(self, pose: np.ndarray):
         """((x, y, yaw) of the camera in the map, half horizontal FOV rad, range m) for drawing."""
-        mount = self.vision.mount2d
-        x, y, th = (float(v) for v in pose)
-        c, s = math.cos(th), math.sin(th)
-        cx = x + c * mount.x - s * mount.y
-        cy = y + s * mount.x + c * mount.y
-        cam = self.vision.camera
-        return (cx, cy, th + mount.yaw), math.atan(0.5 * cam.width / cam.fx), self.vision.max_range
+        lens, heading = self.vision.mount.camera_pose(pose)
+        return (float(lens[0]), float(lens[1]), heading), self.vision.half_fov, self.vision.max_range
 
     def close(self) -> None:
         self._episode = None
@@ -249,19 +231,13 @@ class AGVEnv(gym.Env):
         self.__init__(render_mode=state["render_mode"], **state["kwargs"])
 
     # -- helpers ---------------------------------------------------------------
-    def _goal_distance(self) -> float:
-        if self._goal is None:
-            return 0.0
-        x, y, _ = self._episode.true_pose
-        return float(math.hypot(self._goal.pose[0] - x, self._goal.pose[1] - y))
-
     def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels: np.ndarray) -> dict:
         goal = np.zeros(3)
-        if self._goal is not None:
-            gx, gy, gth = self._goal.pose
+        if self.task.goal is not None:
+            gx, gy, gth = self.task.goal.pose
             c, s = math.cos(pose[2]), math.sin(pose[2])
             dx, dy = gx - pose[0], gy - pose[1]
-            dth = math.atan2(math.sin(gth - pose[2]), math.cos(gth - pose[2]))
+            dth = wrap_angle(float(gth - pose[2]))
             goal = np.array([c * dx + s * dy, -s * dx + c * dy, dth])
         obs = {
             "pose": np.asarray(pose, dtype=np.float32).copy(),
@@ -303,3 +279,23 @@ def _inset(canvas: np.ndarray, frame: np.ndarray) -> np.ndarray:
     out[4:4 + th, w - tw - 4:w - 4] = small[..., :3]
     cv2.rectangle(out, (w - tw - 5, 3), (w - 3, 5 + th), (20, 20, 20), 1)
     return out
+
+
+def _choices(values) -> str:
+    return " | ".join(repr(v) for v in values)
+
+
+def _fill_doc(doc: str) -> str:
+    """The env docstring with its choice lists read from where they are defined."""
+    from agvsim.loop.modes import LOCALIZATION_MODES
+    from agvsim.sensors.registry import SOURCES
+    from agvsim.sensors.vision import LENSES_MM
+    from agvsim.vehicle.encoders import PRESETS
+
+    tasks = "\n".join(f"    - ``{name}``: {cls.summary}" for name, cls in TASKS.items())
+    return (doc.replace("{tasks}", tasks).replace("{odometry}", _choices(PRESETS))
+            .replace("{localization}", _choices(LOCALIZATION_MODES)).replace("{observations}", _choices(SOURCES))
+            .replace("{lenses}", " | ".join(f"{v:g}" for v in LENSES_MM)))
+
+
+AGVEnv.__doc__ = _fill_doc(AGVEnv.__doc__ or "")

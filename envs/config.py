@@ -2,12 +2,15 @@
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass, fields
 
-from agvsim.episode import LOCALIZATION_MODES
-
-TASKS: tuple[str, ...] = ("goto", "localize")
+from agvsim.loop.modes import LOCALIZATION_MODES
+from agvsim.sensors.registry import SOURCES, source_class
+from agvsim.sensors.vision import LENSES_MM
+from agvsim.vehicle.encoders import PRESETS
+from envs.tasks import TASK_NAMES
+from localizer.mount import CameraMount
+from localizer.numeric import check_choice, check_number
 
 
 @dataclass(frozen=True)
@@ -17,17 +20,20 @@ class EnvConfig:
     Attributes:
         map: map name or YAML path.
         route: route whose stations are the start and goal candidates.
-        task: ``goto`` (drive to a goal station) or ``localize`` (stay
-            localized: reward for a small estimate error).
-        odometry: odometry error preset (``ideal``, ``typical``, ``worn``).
-        localization: pose the agent observes: ``ekf``, ``odometry`` or ``truth``.
+        task: one of :data:`envs.tasks.TASK_NAMES`: ``goto`` (drive to a goal station) or
+            ``localize`` (stay localized: reward for a small estimate error).
+        odometry: odometry error preset, one of :data:`agvsim.vehicle.encoders.PRESETS`.
+        localization: pose the agent observes, one of :data:`agvsim.loop.modes.LOCALIZATION_MODES`.
         camera_rate: camera frames per second (Hz).
         camera_latency: delay from capture to fusion (s).
-        observations: what the camera reports: ``rendered`` (pyrender frames
-            and the localizer, the real thing), ``synthetic`` (warped targets
-            on a plain background and the localizer) or ``geometric`` (true
+        observations: what the camera reports, one of :data:`agvsim.sensors.registry.SOURCES`:
+            ``rendered`` (pyrender frames and the localizer, the real thing), ``synthetic``
+            (warped targets on a plain background and the localizer) or ``geometric`` (true
             target geometry plus noise; fast, for experiments).
-        lens: focal length of the thesis camera (mm): 16 or 50.
+        camera_mount: where the camera sits on the vehicle, a :class:`localizer.mount.CameraMount`
+            or a dict of its fields (m, rad); None: the map's recommended mount (its YAML's
+            ``camera_mount``).
+        lens: focal length of the thesis camera (mm), one of :data:`agvsim.sensors.vision.LENSES_MM`.
         lighting_randomization: per-episode exposure factor exp(N(0, σ²)) of
             rendered frames, σ this value (dimensionless; 0 disables it).
         observe_image: add the latest camera frame to the observation.
@@ -47,6 +53,7 @@ class EnvConfig:
     camera_rate: float = 4.0  # Hz
     camera_latency: float = 0.25  # s
     observations: str = "rendered"
+    camera_mount: CameraMount | None = None
     lens: float = 16.0  # mm
     lighting_randomization: float = 0.0  # dimensionless
     observe_image: bool = False
@@ -58,29 +65,37 @@ class EnvConfig:
     error_scale: float = 0.1  # m
 
     def __post_init__(self) -> None:
-        if self.task not in TASKS:
-            raise ValueError(f"task must be one of {TASKS}, got {self.task!r}")
-        if self.localization not in LOCALIZATION_MODES:
-            raise ValueError(f"localization must be one of {LOCALIZATION_MODES}, got {self.localization!r}")
-        if self.odometry not in ("ideal", "typical", "worn"):
-            raise ValueError(f"odometry must be 'ideal', 'typical' or 'worn', got {self.odometry!r}")
-        if self.observations not in ("rendered", "synthetic", "geometric"):
-            raise ValueError(f"observations must be 'rendered', 'synthetic' or 'geometric', got {self.observations!r}")
-        if self.observe_image and self.observations != "rendered":
-            raise ValueError("observe_image=True needs observations='rendered' (the other sources draw no scene)")
-        if not isinstance(self.camera_latency, (int, float)) or not math.isfinite(self.camera_latency) \
-                or self.camera_latency < 0:
-            raise ValueError(f"camera_latency must be a finite number >= 0 (s), got {self.camera_latency!r}")
-        if self.lens not in (16.0, 50.0):
-            raise ValueError(f"lens must be 16 or 50 (mm), got {self.lens!r}")
-        for name in ("camera_rate", "policy_rate", "goal_radius", "error_scale"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        check_choice("EnvConfig.task", self.task, TASK_NAMES)
+        check_choice("EnvConfig.localization", self.localization, LOCALIZATION_MODES)
+        check_choice("EnvConfig.odometry", self.odometry, PRESETS)
+        check_choice("EnvConfig.observations", self.observations, SOURCES)
+        if isinstance(self.camera_mount, dict):
+            known = [f.name for f in fields(CameraMount)]
+            unknown = sorted(set(self.camera_mount) - set(known))
+            if unknown:
+                raise ValueError(f"EnvConfig.camera_mount: unknown field(s) {', '.join(unknown)}; "
+                                 f"expected some of {', '.join(known)}")
+            object.__setattr__(self, "camera_mount", CameraMount(**self.camera_mount))
+        if self.camera_mount is not None and not isinstance(self.camera_mount, CameraMount):
+            raise ValueError("EnvConfig.camera_mount must be None, a localizer.mount.CameraMount or a dict "
+                             f"of its fields, got {self.camera_mount!r}")
+        if self.observe_image and not source_class(self.observations).draws_frames:
+            raise ValueError(f"EnvConfig.observe_image=True needs a source that draws frames; "
+                             f"observations={self.observations!r} draws none")
+        if self.lighting_randomization > 0 and not source_class(self.observations).has_exposure:
+            raise ValueError(f"EnvConfig.lighting_randomization={self.lighting_randomization!r} needs a source "
+                             f"with an exposure; observations={self.observations!r} has none")
+        check_number("EnvConfig.camera_latency", self.camera_latency, low=0.0, unit="s")
+        if check_number("EnvConfig.lens", self.lens, unit="mm") not in LENSES_MM:
+            raise ValueError(f"EnvConfig.lens must be one of {', '.join(f'{v:g}' for v in LENSES_MM)} (mm), "
+                             f"got {self.lens!r}")
+        units = {"camera_rate": "Hz", "policy_rate": "Hz", "goal_radius": "m", "error_scale": "m"}
+        for name, unit in units.items():
+            check_number(f"EnvConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
         for name in ("lighting_randomization", "collision_penalty", "time_cost"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            check_number(f"EnvConfig.{name}", getattr(self, name), low=0.0)
+        if not isinstance(self.observe_image, bool) or not isinstance(self.terminate_on_collision, bool):
+            raise ValueError("EnvConfig.observe_image and terminate_on_collision must be True or False")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "EnvConfig":

@@ -13,7 +13,7 @@ import numpy as np
 
 import agvsim
 from agvsim.runner import drive_route
-from agvsim.simulation import SimConfig
+from agvsim.vehicle.simulation import SimConfig
 from agvsim.vehicle.encoders import PRESETS, OdometryErrorModel
 
 

@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 import envs  # noqa: F401  (registers the agvsim/ environments)
-from agvsim.control import FollowerParams, PurePursuit, RoutePath
+from agvsim.loop.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 
 
 def route_between(world_map, route: str, start: str, goal: str) -> RoutePath:

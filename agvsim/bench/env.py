@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import multiprocessing as mp
 
+from agvsim.loop.modes import LOCALIZATION_MODES
+
 CONFIGS = {
     "state": {"observe_image": False},
     "image": {"observe_image": True},
@@ -19,7 +21,7 @@ CONFIGS = {
 def add_arguments(parser) -> None:
     parser.add_argument("--env-id", default="agvsim/PlantFloor-v0")
     parser.add_argument("--steps", type=int, default=600, help="timed policy steps (default: %(default)s)")
-    parser.add_argument("--localization", default="ekf", choices=("ekf", "odometry", "truth"))
+    parser.add_argument("--localization", default="ekf", choices=LOCALIZATION_MODES)
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
 
 

@@ -40,10 +40,10 @@ def run(args) -> dict:
     import numpy as np
 
     from localizer import Camera
-    from agvsim.render.gl import GLContext
-    from agvsim.render.renderer import CameraRenderer, RenderConditions
-    from agvsim.render.strip import route_poses
-    from agvsim.world.map import load_map
+    from agvsim.sensors.render.gl import GLContext
+    from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.sensors.render.strip import route_poses
+    from agvsim.world import load_map
 
     if args.frames < 1:
         raise ValueError("--frames must be >= 1")

@@ -1,7 +1,7 @@
 """``agvsim bench sim``: physics + odometry throughput on one core, no rendering.
 
 The route's commands are recorded once by driving it with the follower, then
-replayed (timed) through :meth:`agvsim.simulation.Simulation.step`. The peer
+replayed (timed) through :meth:`agvsim.vehicle.simulation.Simulation.step`. The peer
 measured in the same run is bare pymunk: the same space and chassis stepped
 with the same control-body velocities but without encoders, dead reckoning
 or contact bookkeeping — the floor our own per-step overhead sits on.
@@ -11,10 +11,12 @@ from __future__ import annotations
 import math
 import time
 
+from agvsim.vehicle.encoders import PRESETS
+
 
 def add_arguments(parser) -> None:
     parser.add_argument("--map", default="plant_floor", help="map (default: %(default)s)")
-    parser.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"))
+    parser.add_argument("--odometry", default="typical", choices=PRESETS)
     parser.add_argument("--laps", type=float, default=2.0, help="route passes to replay (default: %(default)s)")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0)
@@ -23,16 +25,17 @@ def add_arguments(parser) -> None:
 def run(args) -> dict:
     import numpy as np
 
-    from agvsim.runner import drive_route
-    from agvsim.simulation import SimConfig, Simulation
+    from agvsim.loop.mission import MissionConfig, run_mission
+    from agvsim.vehicle.simulation import SimConfig, Simulation
     from agvsim.vehicle.encoders import OdometryErrorModel
-    from agvsim.world.map import load_map
+    from agvsim.world import load_map
 
     if args.repeats < 1 or not math.isfinite(args.laps) or args.laps <= 0:
         raise ValueError("--repeats must be >= 1 and --laps positive")
     world_map = load_map(args.map)
     config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))
-    recorded = drive_route(world_map, np.random.default_rng(args.seed), config=config, laps=args.laps)
+    recorded = run_mission(world_map, None, np.random.default_rng(args.seed),
+                           MissionConfig(sim=config, laps=args.laps, vision=False, steer_on="truth"))
     commands = [tuple(map(float, c)) for c in recorded.command]
     start = world_map.route("default")[0].pose
     n_physics = len(commands) * config.substeps

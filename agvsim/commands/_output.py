@@ -13,15 +13,15 @@ from typing import Any
 import numpy as np
 
 
-def _clean(value: Any) -> Any:
+def clean_json(value: Any) -> Any:
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return {str(k): clean_json(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
+        return [clean_json(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
+        return clean_json(value.tolist())
     if isinstance(value, np.generic):
-        return _clean(value.item())
+        return clean_json(value.item())
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
@@ -29,7 +29,7 @@ def _clean(value: Any) -> Any:
 
 def emit_json(obj: dict[str, Any]) -> None:
     """Print ``obj`` as one JSON object on stdout (NaN/inf become null)."""
-    json.dump(_clean(obj), sys.stdout, indent=2, sort_keys=False)
+    json.dump(clean_json(obj), sys.stdout, indent=2, sort_keys=False)
     sys.stdout.write("\n")
     sys.stdout.flush()
 

@@ -16,7 +16,10 @@ import math
 import time
 from pathlib import Path
 
+from agvsim.commands._args import add_mount_flag
 from agvsim.commands._output import add_json_flag, emit_json, log
+from agvsim.sensors.registry import SOURCES
+from agvsim.vehicle.encoders import PRESETS
 
 DEFAULT_MAP = "plant_floor"
 
@@ -26,7 +29,7 @@ def register(sub) -> None:
                        description=__doc__.split("\n\n")[0])
     p.add_argument("--map", default=DEFAULT_MAP, help="map name or YAML path (default: %(default)s)")
     p.add_argument("--route", default="default", help="route name (default: %(default)s)")
-    p.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"),
+    p.add_argument("--odometry", default="typical", choices=PRESETS,
                    help="odometry error preset (default: %(default)s)")
     p.add_argument("--laps", type=float, default=1.0, help="passes of a loop route (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
@@ -34,8 +37,9 @@ def register(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-vision", action="store_true",
                    help="no camera or filter: steer on the true pose and show dead reckoning alone")
-    p.add_argument("--observations", default="rendered", choices=("rendered", "synthetic", "geometric"),
+    p.add_argument("--observations", default="rendered", choices=SOURCES,
                    help="what the camera reports (default: %(default)s, the renderer + localizer)")
+    add_mount_flag(p)
     p.add_argument("--frames", type=int, default=8,
                    help="camera frames in the strip along the route, 0 for none (default: %(default)s)")
     add_json_flag(p)
@@ -77,13 +81,14 @@ def run(args) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from agvsim.control.pure_pursuit import RoutePath
-    from agvsim.plots import error_vs_distance
-    from agvsim.runner import drive_route
-    from agvsim.simulation import SimConfig
+    from agvsim.analysis.plots import error_vs_distance
+    from agvsim.analysis.topdown import TopDownView, Trajectory
+    from agvsim.loop.mission import MissionConfig, run_mission
+    from agvsim.loop.pure_pursuit import RoutePath
+    from agvsim.sensors import VisionConfig, make_source
     from agvsim.vehicle.encoders import OdometryErrorModel
-    from agvsim.views import TopDownView, Trajectory
-    from agvsim.world.map import load_map
+    from agvsim.vehicle.simulation import SimConfig
+    from agvsim.world import load_map
 
     world_map = load_map(args.map)
     if not math.isfinite(args.laps) or args.laps <= 0:
@@ -105,14 +110,14 @@ def run(args) -> int:
 
     started = time.perf_counter()
     estimate = estimate_error = None
+    vision = VisionConfig(mount=args.camera_mount).for_map(world_map)
     if args.no_vision:
-        run_log = drive_route(world_map, rng, route=args.route, config=config, laps=args.laps, progress=progress)
+        mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision,
+                                vision=False, steer_on="truth")
+        run_log = run_mission(world_map, None, rng, mission, progress=progress)
     else:
-        from agvsim.mission import MissionConfig, run_mission
-        from agvsim.observe import make_source
-
-        mission = MissionConfig(route=args.route, laps=args.laps, sim=config)
-        source = make_source(args.observations, world_map, mission.vision_config)
+        mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision)
+        source = make_source(args.observations, world_map, vision)
         run_log = run_mission(world_map, source, rng, mission, progress=progress)
         estimate = run_log.estimate
         estimate_error = np.linalg.norm(estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
@@ -148,10 +153,9 @@ def run(args) -> int:
     files = {"topdown": str(topdown), "error_plot": str(plot)}
     strip = None
     if args.frames > 0:
-        from agvsim.observe import DEFAULT_MOUNT
-        from agvsim.render.strip import route_poses, save_camera_strip
+        from agvsim.sensors.render.strip import route_poses, save_camera_strip
 
-        mount = DEFAULT_MOUNT  # the closed loop's camera: 45° right of the heading
+        mount = vision.mount  # the closed loop's camera
         strip = save_camera_strip(world_map, route_poses(world_map, args.frames, route=args.route, mount=mount),
                                   out / "camera_strip.png", mount=mount, rng=rng)
         files["camera_strip"] = str(strip["path"])

@@ -15,7 +15,10 @@ import sys
 import time
 from pathlib import Path
 
+from agvsim.commands._args import add_mount_flag
 from agvsim.commands._output import add_json_flag, emit_json, log
+from agvsim.sensors.registry import SOURCES
+from agvsim.vehicle.encoders import PRESETS
 
 DEFAULT_MAP = "plant_floor"
 
@@ -28,12 +31,12 @@ def register(sub) -> None:
     p.add_argument("--distance", type=float, default=1000.0, help="metres of route per seed (default: %(default)s)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds 0..N-1 (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=0, help="first seed (default: %(default)s)")
-    p.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"),
+    p.add_argument("--odometry", default="typical", choices=PRESETS,
                    help="odometry error preset (default: %(default)s)")
     p.add_argument("--camera-rate", type=float, default=4.0, help="camera frames per second (default: %(default)s)")
     p.add_argument("--latency", type=float, default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
     p.add_argument("--no-vision", action="store_true", help="dead reckoning only (the contrast run)")
-    p.add_argument("--observations", default="rendered", choices=("rendered", "synthetic", "geometric"),
+    p.add_argument("--observations", default="rendered", choices=SOURCES,
                    help="observation source: rendered frames + localizer (issue 4 renderer), synthetic "
                         "frames + localizer, or geometric truth + noise (default: %(default)s)")
     p.add_argument("--drop-targets", type=int, default=0, metavar="N",
@@ -44,6 +47,7 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, default=Path("out/drift"), help="output folder (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_mount_flag(p)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -52,17 +56,18 @@ def _job(args: dict):
     """One seed in a worker process: returns (seed, MissionLog). Renderer created lazily in the worker."""
     import numpy as np
 
-    from agvsim.mission import MissionConfig, run_mission
-    from agvsim.observe import GeometricNoise, drop_targets, make_source
-    from agvsim.simulation import SimConfig
-    from agvsim.world.map import load_map
+    from agvsim.loop.mission import MissionConfig, run_mission
+    from agvsim.sensors import GeometricNoise, VisionConfig, make_source
+    from agvsim.vehicle.simulation import SimConfig
+    from agvsim.world import load_map
 
     world_map = load_map(args["map"])
     if args["drop_targets"]:
-        world_map = drop_targets(world_map, args["drop_targets"])
+        world_map = world_map.without_targets(args["drop_targets"])
     config = MissionConfig(route=args["route"], distance=args["distance"], camera_rate=args["camera_rate"],
                            latency=args["latency"], vision=not args["no_vision"],
-                           sim=SimConfig(odometry=args["odometry"]))
+                           sim=SimConfig(odometry=args["odometry"]),
+                           vision_config=VisionConfig(mount=args.get("camera_mount")).for_map(world_map))
     source = None
     if config.vision:
         kw = {}
@@ -105,8 +110,8 @@ def format_table(summary: dict, per_seed: list[dict]) -> str:
 def _plots(world_map, run_log, out: Path, title: str) -> dict:
     import numpy as np
 
-    from agvsim.plots import error_vs_distance
-    from agvsim.views import TopDownView, Trajectory
+    from agvsim.analysis.plots import error_vs_distance
+    from agvsim.analysis.topdown import TopDownView, Trajectory
 
     view = TopDownView(world_map)
     n = len(run_log.time)
@@ -135,9 +140,9 @@ def run(args) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from agvsim.evaluate import floors_met, pooled, run_metrics, summarize
-    from agvsim.observe import RenderedSource, drop_targets
-    from agvsim.world.map import load_map
+    from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
+    from agvsim.sensors.rendered import RenderedSource
+    from agvsim.world import load_map
 
     if args.seeds < 1:
         raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
@@ -151,9 +156,9 @@ def run(args) -> int:
         raise ValueError("--false-rate applies to --observations geometric only")
     world_map = load_map(args.map)
     if args.drop_targets:
-        world_map = drop_targets(world_map, args.drop_targets)
+        world_map = world_map.without_targets(args.drop_targets)
     if not args.no_vision and args.observations == "rendered" and not RenderedSource.available():
-        raise ValueError("the camera renderer (agvsim.render.CameraRenderer, issue 4) is not available; "
+        raise ValueError("the camera renderer (agvsim.sensors.render.CameraRenderer, issue 4) is not available; "
                          "use --observations synthetic (synthetic frames + localizer) or geometric")
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     workers = args.workers or (os.cpu_count() or 1)
@@ -164,7 +169,8 @@ def run(args) -> int:
         f"(latency {args.latency:g} s), observations: {source}, {workers} workers")
     base = {"map": args.map, "route": args.route, "distance": args.distance, "odometry": args.odometry,
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
-            "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate}
+            "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
+            "camera_mount": args.camera_mount}
     bar = tqdm(total=round(args.distance * len(seeds)), unit="m", desc="driving", disable=args.no_progress,
                leave=False, file=sys.stderr)
     started = time.perf_counter()
@@ -284,6 +290,6 @@ def _arrays(run_log) -> dict:
 
 
 def _json_ready(obj):
-    from agvsim.commands._output import _clean
+    from agvsim.commands._output import clean_json
 
-    return _clean(obj)
+    return clean_json(obj)

@@ -41,7 +41,7 @@ def register(sub) -> None:
 # ---------------------------------------------------------------- list
 
 def run_list(args: argparse.Namespace) -> int:
-    from agvsim.world.map import MapError, load_map, maps_dir, shipped_maps
+    from agvsim.world import MapError, load_map, maps_dir, shipped_maps
 
     rows = []
     for name in shipped_maps():
@@ -87,7 +87,7 @@ def _one_line(row: dict[str, Any]) -> str:
 
 def run_check(args: argparse.Namespace) -> int:
     from agvsim.world.checks import route_sightings
-    from agvsim.world.map import MapError, load_map
+    from agvsim.world import MapError, load_map
 
     try:
         world = load_map(args.map)

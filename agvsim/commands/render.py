@@ -55,9 +55,9 @@ def render_frame(args: argparse.Namespace) -> dict:
     import numpy as np
 
     from localizer import Camera
-    from agvsim.render.mount import CameraMount
-    from agvsim.render.renderer import CameraRenderer, RenderConditions
-    from agvsim.world.map import load_map
+    from agvsim.sensors.render.mount import CameraMount
+    from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.world import load_map
 
     world_map = load_map(args.map)
     if args.mount == "forward":
@@ -80,9 +80,9 @@ def render_frame(args: argparse.Namespace) -> dict:
     if args.truth:
         tpath = Path(args.truth)
         tpath.parent.mkdir(parents=True, exist_ok=True)
-        from agvsim.commands._output import _clean
+        from agvsim.commands._output import clean_json
 
-        tpath.write_text(json.dumps(_clean(record), indent=2) + "\n", encoding="utf-8")
+        tpath.write_text(json.dumps(clean_json(record), indent=2) + "\n", encoding="utf-8")
     return record
 
 

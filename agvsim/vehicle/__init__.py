@@ -1,14 +1,39 @@
-"""The AGV: pymunk dynamics, wheel encoders and dead reckoning."""
-from agvsim.vehicle.dynamics import DiffDriveVehicle, VehicleParams
-from agvsim.vehicle.encoders import EncoderModel, OdometryErrorModel, WheelTicks
-from agvsim.vehicle.odometry import DeadReckoning, OdometryIncrement
+"""The vehicle layer: pymunk world and chassis, wheel encoders, dead reckoning, the stepped simulation.
 
-__all__ = [
-    "DeadReckoning",
-    "DiffDriveVehicle",
-    "EncoderModel",
-    "OdometryErrorModel",
-    "OdometryIncrement",
-    "VehicleParams",
-    "WheelTicks",
-]
+Data flows one way: a map (:mod:`agvsim.world`) becomes a pymunk space
+(:mod:`~agvsim.vehicle.physics`); the chassis (:mod:`~agvsim.vehicle.dynamics`)
+moves in it; the encoders (:mod:`~agvsim.vehicle.encoders`) read the true wheel
+motion with errors; dead reckoning (:mod:`~agvsim.vehicle.odometry`) integrates
+the counts; :class:`~agvsim.vehicle.simulation.Simulation` steps all of it at the
+control rate. Names load on first use (no pymunk at ``import agvsim.vehicle``).
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "DiffDriveVehicle": "agvsim.vehicle.dynamics",
+    "VehicleParams": "agvsim.vehicle.dynamics",
+    "EncoderModel": "agvsim.vehicle.encoders",
+    "OdometryErrorModel": "agvsim.vehicle.encoders",
+    "PRESETS": "agvsim.vehicle.encoders",
+    "WheelTicks": "agvsim.vehicle.encoders",
+    "DeadReckoning": "agvsim.vehicle.odometry",
+    "SimConfig": "agvsim.vehicle.simulation",
+    "Simulation": "agvsim.vehicle.simulation",
+    "StepResult": "agvsim.vehicle.simulation",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'agvsim.vehicle' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

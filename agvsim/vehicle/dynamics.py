@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import pymunk
 
-from agvsim.physics import COLLISION_VEHICLE, ContactMonitor
+from agvsim.vehicle.physics import COLLISION_VEHICLE, ContactMonitor
 
 GRAVITY = 9.81  # m/s^2
 
@@ -64,7 +64,7 @@ class DiffDriveVehicle:
 
     Args:
         space: the pymunk space holding the static world (see
-            :func:`agvsim.physics.build_space`).
+            :func:`agvsim.vehicle.physics.build_space`).
         pose: initial true pose (x m, y m, θ rad).
         params: vehicle limits and geometry.
         contacts: monitor that records the chassis's contacts.

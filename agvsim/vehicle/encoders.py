@@ -23,7 +23,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-TWO_PI = 2.0 * math.pi
+from localizer.numeric import TWO_PI, check_choice, check_number
+
 _NOISE_BLOCK = 4096  # normals drawn from the generator at a time
 
 
@@ -50,34 +51,18 @@ class OdometryErrorModel:
     slip_in_contact: float = 0.0  # share of commanded wheel motion
 
     def __post_init__(self) -> None:
-        checks = {
-            "wheel_noise": self.wheel_noise >= 0,
-            "ed": self.ed > 0,
-            "eb": self.eb > 0,
-            "slip_in_contact": 0.0 <= self.slip_in_contact <= 1.0,
-        }
-        for name, ok in checks.items():
-            value = getattr(self, name)
-            if not math.isfinite(value) or not ok:
-                raise ValueError(f"OdometryErrorModel.{name} out of range: {value!r}")
-        if not isinstance(self.ticks_per_rev, (int, np.integer)) or self.ticks_per_rev < 0:
-            raise ValueError(f"OdometryErrorModel.ticks_per_rev must be an integer >= 0, got {self.ticks_per_rev!r}")
+        check_number("OdometryErrorModel.wheel_noise", self.wheel_noise, low=0.0, unit="m^(1/2)")
+        check_number("OdometryErrorModel.ed", self.ed, low=0.0, low_open=True)
+        check_number("OdometryErrorModel.eb", self.eb, low=0.0, low_open=True)
+        check_number("OdometryErrorModel.slip_in_contact", self.slip_in_contact, low=0.0, high=1.0)
+        check_number("OdometryErrorModel.ticks_per_rev", self.ticks_per_rev, low=0.0, integer=True)
 
     @classmethod
     def preset(cls, name: str) -> "OdometryErrorModel":
-        """``ideal`` (no error), ``typical`` (a well-kept AGV, about 1 % of
-        distance) or ``worn`` (uneven tyres, worn encoders, several %)."""
-        presets = {
-            "ideal": cls(),
-            # measured on plant_floor's default route (4 seeds): ~1.2 % of distance at 100 m
-            "typical": cls(wheel_noise=0.001, ed=1.0002, eb=1.001, ticks_per_rev=4096, slip_in_contact=1.0),
-            # same route: ~5 % of distance at 100 m
-            "worn": cls(wheel_noise=0.002, ed=1.001, eb=1.004, ticks_per_rev=1024, slip_in_contact=1.0),
-        }
-        try:
-            return presets[name]
-        except KeyError:
-            raise ValueError(f"unknown odometry preset {name!r}; expected one of {sorted(presets)}") from None
+        """The model called ``name``, one of :data:`PRESETS` (``ideal``: no error; ``typical``:
+        a well-kept AGV, about 1 % of distance; ``worn``: uneven tyres, worn encoders, several %)."""
+        check_choice("odometry preset", name, PRESETS)
+        return cls(**_PRESET_FIELDS[name])
 
     def without(self, *parts: str) -> "OdometryErrorModel":
         """A copy with the named parts switched off (``noise``, ``systematic``,
@@ -92,7 +77,17 @@ class OdometryErrorModel:
         return replace(self, **changes)
 
 
-PRESETS: tuple[str, ...] = ("ideal", "typical", "worn")
+#: preset name -> its fields; the one list of presets (CLI choices, env validation, docs).
+_PRESET_FIELDS: dict[str, dict[str, float]] = {
+    "ideal": {},
+    # measured on plant_floor's default route (4 seeds): ~1.2 % of distance at 100 m
+    "typical": {"wheel_noise": 0.001, "ed": 1.0002, "eb": 1.001, "ticks_per_rev": 4096, "slip_in_contact": 1.0},
+    # same route: ~5 % of distance at 100 m
+    "worn": {"wheel_noise": 0.002, "ed": 1.001, "eb": 1.004, "ticks_per_rev": 1024, "slip_in_contact": 1.0},
+}
+
+#: The odometry error presets by name.
+PRESETS: tuple[str, ...] = tuple(_PRESET_FIELDS)
 
 
 @dataclass(frozen=True)

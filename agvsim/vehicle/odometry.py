@@ -12,9 +12,7 @@ with ``sinc(u) = sin(u)/u``, Δs = (s_R + s_L)/2 and Δθ = (s_R - s_L)/b.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
-from agvsim.vehicle.encoders import TWO_PI, WheelTicks
+from agvsim.vehicle.encoders import WheelTicks
 
 
 def arc_chord_factor(half_angle: float) -> float:
@@ -22,21 +20,6 @@ def arc_chord_factor(half_angle: float) -> float:
     if abs(half_angle) < 1e-4:
         return 1.0 - half_angle * half_angle / 6.0
     return math.sin(half_angle) / half_angle
-
-
-@dataclass(frozen=True)
-class OdometryIncrement:
-    """What a real AGV controller sees each control step.
-
-    Attributes:
-        ds: distance travelled along the path (m), negative when reversing.
-        dtheta: heading change (rad).
-        pose: integrated dead-reckoned pose (x m, y m, θ rad) after it.
-    """
-
-    ds: float
-    dtheta: float
-    pose: tuple[float, float, float]
 
 
 class DeadReckoning:
@@ -89,12 +72,13 @@ class DeadReckoning:
         self._acc_dtheta += dtheta
         self.distance += abs(ds)
 
-    def take_increment(self) -> OdometryIncrement:
-        """The (Δs, Δθ) accumulated since the last call, and the pose."""
-        inc = OdometryIncrement(self._acc_ds, self._acc_dtheta, self.pose)
+    def take_increment(self) -> tuple[float, float]:
+        """(Δs m, Δθ rad) integrated since the last call: what a real AGV controller sees
+        each control step (Δs negative when reversing)."""
+        inc = (self._acc_ds, self._acc_dtheta)
         self._acc_ds = 0.0
         self._acc_dtheta = 0.0
         return inc
 
 
-__all__ = ["DeadReckoning", "OdometryIncrement", "arc_chord_factor", "TWO_PI"]
+__all__ = ["DeadReckoning", "arc_chord_factor"]

@@ -15,6 +15,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 #: Marks "no value to show" in an error message (a missing key).
 MISSING: Any = object()
 
@@ -152,20 +154,21 @@ def sequence(ctx: Context, path: str, raw: Any, what: str, min_len: int = 0) -> 
 
 def number(ctx: Context, path: str, raw: Any, unit: str = "", *, positive: bool = False,
            non_negative: bool = False) -> float:
-    """A finite real number (YAML int or float, not a bool)."""
+    """A finite real number (YAML int or float, not a bool), checked by
+    :func:`localizer.numeric.check_number`; a :class:`MapError` naming the field otherwise."""
     kind = "a positive number" if positive else (
         "a number >= 0" if non_negative else "a finite number")
     expected = f"{kind}, {unit}" if unit else kind
-    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-        raise ctx.error(path, "wrong type", raw, expected)
-    value = float(raw)
-    if not math.isfinite(value):
-        raise ctx.error(path, "not a finite number", raw, expected)
-    if positive and value <= 0.0:
-        raise ctx.error(path, "must be positive", raw, expected)
-    if non_negative and value < 0.0:
-        raise ctx.error(path, "must not be negative", raw, expected)
-    return value
+    try:
+        return check_number(path, raw, low=0.0 if (positive or non_negative) else None, low_open=positive)
+    except ValueError:
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            reason = "wrong type"
+        elif not math.isfinite(float(raw)):
+            reason = "not a finite number"
+        else:
+            reason = "must be positive" if positive else "must not be negative"
+        raise ctx.error(path, reason, raw, expected) from None
 
 
 _ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")

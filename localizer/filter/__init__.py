@@ -2,9 +2,9 @@
 
 Plain data in, plain data out; imports neither ``agvsim`` nor ``envs``.
 
-    from localizer.filter import (PoseEKF, FilterConfig, TargetMap, CameraMount2D,
+    from localizer.filter import (PoseEKF, FilterConfig, TargetMap, CameraMount,
                                   OdometryNoise, Measurement)
-    ekf = PoseEKF(x0, P0, TargetMap(ids, positions, yaws, polarities), CameraMount2D(0, -0.3, -pi/2))
+    ekf = PoseEKF(x0, P0, TargetMap(ids, positions, yaws, polarities), CameraMount(forward=0.0, lateral=-0.3, yaw=-pi/2))
     ekf.add_odometry(t, ds, dtheta)           # every control step (cheap)
     result = ekf.process_frame(t_capture, detect_targets(image, camera))
     ekf.pose(), ekf.covariance()              # current estimate for the controller
@@ -12,15 +12,16 @@ Plain data in, plain data out; imports neither ``agvsim`` nor ``envs``.
 from localizer.filter.association import (ACCEPTED, AMBIGUOUS, DUPLICATE, GATED, NO_CANDIDATE, Association,
                                           GateConfig, associate, innovation)
 from localizer.filter.ekf import FilterConfig, FrameResult, PoseEKF
-from localizer.filter.measurement import (CameraMount2D, Measurement, TargetMap, ViewLimits,
+from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, pose_from_measurement,
                                           pose_from_measurement_jacobian, predict_all,
                                           predict_measurement, wrap_angle)
+from localizer.mount import CameraMount
 from localizer.filter.motion import OdometryAccumulator, OdometryNoise, arc_motion, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
 
 __all__ = [
-    "ACCEPTED", "AMBIGUOUS", "Association", "CameraMount2D", "DUPLICATE", "FilterConfig", "FrameResult",
+    "ACCEPTED", "AMBIGUOUS", "Association", "CameraMount", "DUPLICATE", "FilterConfig", "FrameResult",
     "GATED", "GateConfig", "Hypothesis", "Measurement", "NO_CANDIDATE", "OdometryAccumulator",
     "OdometryNoise", "PoseEKF", "RelocalizeConfig", "Relocalizer", "TargetMap", "ViewLimits", "arc_motion",
     "associate", "compose", "compose_jacobians", "innovation", "measurement_jacobian", "pose_from_measurement",

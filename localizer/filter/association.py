@@ -22,7 +22,8 @@ from typing import Sequence
 import numpy as np
 from scipy.stats import chi2
 
-from localizer.filter.measurement import (CameraMount2D, Measurement, TargetMap, ViewLimits,
+from localizer.mount import CameraMount
+from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, predict_all, wrap_angle)
 
 __all__ = ["ACCEPTED", "AMBIGUOUS", "Association", "DUPLICATE", "GATED", "GateConfig", "NO_CANDIDATE",
@@ -96,7 +97,7 @@ def innovation(z: np.ndarray, hx: np.ndarray) -> np.ndarray:
     return y
 
 
-def associate(x, P, measurements: Sequence[Measurement], targets: TargetMap, mount: CameraMount2D,
+def associate(x, P, measurements: Sequence[Measurement], targets: TargetMap, mount: CameraMount,
               config: GateConfig = GateConfig()) -> list[Association]:
     """Associate every measurement of one frame with a map target (see the module docstring).
 

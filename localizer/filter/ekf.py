@@ -33,8 +33,9 @@ from typing import Sequence
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
+from localizer.mount import CameraMount
 from localizer.filter.association import ACCEPTED, Association, GateConfig, associate, innovation
-from localizer.filter.measurement import (CameraMount2D, Measurement, TargetMap, measurement_jacobian,
+from localizer.filter.measurement import (Measurement, TargetMap, measurement_jacobian,
                                           predict_measurement, wrap_angle)
 from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
@@ -131,7 +132,7 @@ class PoseEKF:
         t0: time of the initial pose (s).
     """
 
-    def __init__(self, x0, P0, targets: TargetMap, mount: CameraMount2D,
+    def __init__(self, x0, P0, targets: TargetMap, mount: CameraMount,
                  config: FilterConfig = FilterConfig(), t0: float = 0.0) -> None:
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         P0 = np.asarray(P0, dtype=float)

@@ -59,8 +59,10 @@ from typing import Sequence
 
 import numpy as np
 
+from localizer.mount import CameraMount
+
 __all__ = [
-    "CameraMount2D", "Measurement", "TargetMap", "ViewLimits", "measurement_jacobian",
+    "Measurement", "TargetMap", "ViewLimits", "measurement_jacobian",
     "pose_from_measurement", "pose_from_measurement_jacobian", "predict_measurement",
     "predict_all", "wrap_angle",
 ]
@@ -73,26 +75,6 @@ def wrap_angle(a):
     if isinstance(a, float):
         return (a + math.pi) % TWO_PI - math.pi
     return (np.asarray(a, dtype=float) + math.pi) % TWO_PI - math.pi
-
-
-@dataclass(frozen=True)
-class CameraMount2D:
-    """The camera's lens centre and optical-axis yaw in the vehicle frame (top view).
-
-    Attributes:
-        x: forward offset of the lens centre from the vehicle reference point (m).
-        y: leftward offset (m); negative = right side.
-        yaw: optical-axis yaw relative to the heading (rad, CCW; -π/2 looks right).
-    """
-
-    x: float = 0.0  # m
-    y: float = 0.0  # m
-    yaw: float = 0.0  # rad
-
-    def __post_init__(self) -> None:
-        for name in ("x", "y", "yaw"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"CameraMount2D.{name} must be finite, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)
@@ -216,16 +198,16 @@ class Measurement:
         return cls(np.array([obs.distance, obs.beta, obs.alpha]), R, getattr(obs, "polarity", None))
 
 
-def _lens(x: np.ndarray, mount: CameraMount2D) -> tuple[float, float, float, float]:
+def _lens(x: np.ndarray, mount: CameraMount) -> tuple[float, float, float, float]:
     """Lens centre (cx, cy) and c_θ = R'(θ) m components."""
     th = float(x[2])
     c, s = math.cos(th), math.sin(th)
-    cx = float(x[0]) + c * mount.x - s * mount.y
-    cy = float(x[1]) + s * mount.x + c * mount.y
-    return cx, cy, -s * mount.x - c * mount.y, c * mount.x - s * mount.y
+    cx = float(x[0]) + c * mount.forward - s * mount.lateral
+    cy = float(x[1]) + s * mount.forward + c * mount.lateral
+    return cx, cy, -s * mount.forward - c * mount.lateral, c * mount.forward - s * mount.lateral
 
 
-def predict_measurement(x, target_position, target_yaw: float, mount: CameraMount2D) -> np.ndarray:
+def predict_measurement(x, target_position, target_yaw: float, mount: CameraMount) -> np.ndarray:
     """h(x): the ``(3,)`` (d m, β rad, α rad) a camera at vehicle pose ``x`` (3,) sees of a target."""
     x = np.asarray(x, dtype=float).reshape(-1)
     cx, cy, _, _ = _lens(x, mount)
@@ -237,7 +219,7 @@ def predict_measurement(x, target_position, target_yaw: float, mount: CameraMoun
     return np.array([d, beta, alpha])
 
 
-def measurement_jacobian(x, target_position, target_yaw: float, mount: CameraMount2D) -> np.ndarray:
+def measurement_jacobian(x, target_position, target_yaw: float, mount: CameraMount) -> np.ndarray:
     """H = ∂h/∂x, ``(3, 3)`` (see the module docstring for the derivation)."""
     x = np.asarray(x, dtype=float).reshape(-1)
     cx, cy, ctx, cty = _lens(x, mount)
@@ -253,7 +235,7 @@ def measurement_jacobian(x, target_position, target_yaw: float, mount: CameraMou
     ])
 
 
-def predict_all(x, targets: TargetMap, mount: CameraMount2D, limits: ViewLimits | None = None):
+def predict_all(x, targets: TargetMap, mount: CameraMount, limits: ViewLimits | None = None):
     """Predicted measurements of every target and which are in view.
 
     Returns:
@@ -281,7 +263,7 @@ def predict_all(x, targets: TargetMap, mount: CameraMount2D, limits: ViewLimits 
     return Z, visible
 
 
-def pose_from_measurement(z, target_position, target_yaw: float, mount: CameraMount2D) -> np.ndarray:
+def pose_from_measurement(z, target_position, target_yaw: float, mount: CameraMount) -> np.ndarray:
     """The vehicle pose ``(3,)`` at which the camera would measure ``z`` = (d, β, α) of the target."""
     d, beta, alpha = (float(v) for v in np.asarray(z, dtype=float).reshape(-1))
     theta = wrap_angle(float(target_yaw) + math.pi + alpha - mount.yaw)
@@ -289,18 +271,18 @@ def pose_from_measurement(z, target_position, target_yaw: float, mount: CameraMo
     cx = float(target_position[0]) - d * math.cos(lam)
     cy = float(target_position[1]) - d * math.sin(lam)
     c, s = math.cos(theta), math.sin(theta)
-    return np.array([cx - (c * mount.x - s * mount.y), cy - (s * mount.x + c * mount.y), theta])
+    return np.array([cx - (c * mount.forward - s * mount.lateral), cy - (s * mount.forward + c * mount.lateral), theta])
 
 
 def pose_from_measurement_jacobian(z, target_position, target_yaw: float,
-                                   mount: CameraMount2D) -> np.ndarray:
+                                   mount: CameraMount) -> np.ndarray:
     """J = ∂(px, py, θ)/∂(d, β, α), ``(3, 3)`` (module docstring)."""
     d, beta, alpha = (float(v) for v in np.asarray(z, dtype=float).reshape(-1))
     theta = float(target_yaw) + math.pi + alpha - mount.yaw
     lam = theta + mount.yaw - beta
     cl, sl = math.cos(lam), math.sin(lam)
     c, s = math.cos(theta), math.sin(theta)
-    ctx, cty = -s * mount.x - c * mount.y, c * mount.x - s * mount.y
+    ctx, cty = -s * mount.forward - c * mount.lateral, c * mount.forward - s * mount.lateral
     return np.array([
         [-cl, -d * sl, d * sl - ctx],
         [-sl, d * cl, -d * cl - cty],

@@ -20,8 +20,9 @@ from typing import Sequence
 
 import numpy as np
 
+from localizer.mount import CameraMount
 from localizer.filter.association import ACCEPTED, GateConfig, associate, innovation
-from localizer.filter.measurement import (CameraMount2D, Measurement, TargetMap, measurement_jacobian,
+from localizer.filter.measurement import (Measurement, TargetMap, measurement_jacobian,
                                           pose_from_measurement, pose_from_measurement_jacobian,
                                           predict_measurement, wrap_angle)
 from localizer.filter.motion import compose, compose_jacobians
@@ -75,7 +76,7 @@ class Relocalizer:
         config: re-localization settings.
     """
 
-    def __init__(self, targets: TargetMap, mount: CameraMount2D, gate: GateConfig = GateConfig(),
+    def __init__(self, targets: TargetMap, mount: CameraMount, gate: GateConfig = GateConfig(),
                  config: RelocalizeConfig = RelocalizeConfig()) -> None:
         self.targets = targets
         self.mount = mount

@@ -26,7 +26,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
     """Replay the same actions (a route follower's, recorded on the true pose)
     with worn odometry: the camera-corrected estimate stays within centimetres
     while dead reckoning drifts by decimetres."""
-    from agvsim.control import FollowerParams, PurePursuit, RoutePath
+    from agvsim.loop.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 
     env = gym.make("agvsim/PlantFloor-v0", localization="truth", odometry="worn", task="localize")
     obs, _ = env.reset(seed=4)

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from localizer.filter import (CameraMount2D, Measurement, OdometryNoise, TargetMap, ViewLimits, arc_motion,
+from localizer.filter import (CameraMount, Measurement, OdometryNoise, TargetMap, ViewLimits, arc_motion,
                               compose, predict_all)
 
-MOUNT = CameraMount2D(0.4, 0.0, -math.radians(45.0))
+MOUNT = CameraMount(forward=0.4, lateral=0.0, yaw=-math.radians(45.0))
 LIMITS = ViewLimits(half_fov=math.radians(15.4), min_range=0.5, max_range=10.0,
                     max_incidence=math.radians(70.0), margin=0.0)
 NOISE = OdometryNoise(wheel_noise=0.001, track_width=0.6)

@@ -98,9 +98,9 @@ def test_ambiguous_match_is_refused():
     # two identical targets 0.2 m apart: an observation between them is ambiguous
     tm = TargetMap(("A", "B"), [[5.0, 0.1], [5.0, -0.1]], [math.pi, math.pi], ("positive", "positive"))
     x = np.zeros(3)
-    from localizer.filter import CameraMount2D, ViewLimits
+    from localizer.filter import CameraMount, ViewLimits
 
-    mount = CameraMount2D()
+    mount = CameraMount(forward=0.0)
     z = predict_measurement(x, [5.0, 0.0], math.pi, mount)
     m = Measurement(z, np.diag([1e-4, 1e-6, 1e-4]), "positive")
     a = associate(x, np.diag([0.3, 0.3, 0.01]) ** 2, [m], tm, mount, GateConfig(view=ViewLimits()))

@@ -9,12 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import approx_fprime
 
-from localizer.filter import (CameraMount2D, Measurement, TargetMap, measurement_jacobian, pose_from_measurement,
+from localizer.filter import (CameraMount, Measurement, TargetMap, measurement_jacobian, pose_from_measurement,
                               pose_from_measurement_jacobian, predict_all, predict_measurement, wrap_angle)
 
 angles = st.floats(-math.pi, math.pi)
 coords = st.floats(-20.0, 20.0)
-mounts = st.builds(CameraMount2D, st.floats(-1, 1), st.floats(-1, 1), angles)
+mounts = st.builds(lambda f, l, y: CameraMount(forward=f, lateral=l, yaw=y), st.floats(-1, 1), st.floats(-1, 1), angles)
 
 
 def _numeric(f, x, eps=1e-6):
@@ -23,7 +23,7 @@ def _numeric(f, x, eps=1e-6):
 
 
 def test_conventions_match_localizer_geometry():
-    mount = CameraMount2D(0.0, 0.0, 0.0)  # camera at the vehicle origin looking along +x
+    mount = CameraMount(forward=0.0, lateral=0.0, yaw=0.0)  # camera at the vehicle origin looking along +x
     # a target 5 m ahead facing the camera squarely: d = 5, β = 0, α = 0
     z = predict_measurement([0, 0, 0], [5.0, 0.0], math.pi, mount)
     np.testing.assert_allclose(z, [5.0, 0.0, 0.0], atol=1e-12)
@@ -75,7 +75,7 @@ def test_predict_all_view_limits():
     from localizer.filter import ViewLimits
 
     tm = TargetMap(("A", "B", "C", "D"), [[5, 0], [5, 3], [5, 0.5], [50, 0]], [math.pi, math.pi, 0.0, math.pi])
-    Z, vis = predict_all([0, 0, 0], tm, CameraMount2D(), ViewLimits(margin=0.0))
+    Z, vis = predict_all([0, 0, 0], tm, CameraMount(forward=0.0), ViewLimits(margin=0.0))
     assert vis.tolist() == [True, False, False, False]  # B outside FOV, C faces away, D too far
     np.testing.assert_allclose(Z[0], [5, 0, 0], atol=1e-12)
 
@@ -92,9 +92,9 @@ def test_bad_inputs_raise():
     with pytest.raises(ValueError):
         Measurement([-1.0, 0.0, 0.0], np.eye(3))
     with pytest.raises(ValueError):
-        CameraMount2D(float("nan"), 0.0, 0.0)
+        CameraMount(forward=float("nan"))
     with pytest.raises(ValueError):
-        measurement_jacobian([1.0, 0.0, 0.0], [1.0, 0.0], 0.0, CameraMount2D())
+        measurement_jacobian([1.0, 0.0, 0.0], [1.0, 0.0], 0.0, CameraMount(forward=0.0))
 
 
 def test_localizer_does_not_import_agvsim():

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from agvsim.evaluate import FLOORS, run_metrics
-from agvsim.mission import MissionConfig, run_mission
-from agvsim.observe import GeometricNoise, GeometricSource, RenderedSource, VisionConfig, mount_2d, targets_from_map
-from agvsim.render.mount import CameraMount
-from agvsim.world.map import load_map
+from agvsim.analysis.evaluate import FLOORS, run_metrics
+from agvsim.loop.mission import MissionConfig, run_mission
+from agvsim.sensors.observe import GeometricNoise, GeometricSource, RenderedSource, VisionConfig, mount_2d, targets_from_map
+from agvsim.sensors.render.mount import CameraMount
+from agvsim.world import load_map
 
 # The corridor's targets hang at 0.8-1.6 m on both walls about 1 m from the lanes; a level 16 mm
 # camera sees them all only from farther away: on the vehicle's left flank looking 30° right of
@@ -124,7 +124,7 @@ def _renderer_works() -> bool:
     if not RenderedSource.available():
         return False
     try:
-        from agvsim.render.gl import choose_platform
+        from agvsim.sensors.render.gl import choose_platform
 
         choose_platform()
     except Exception:
@@ -144,8 +144,8 @@ def test_short_rendered_loop(corridor):
 
 
 def test_turn_blur_noise_inflates_only_while_turning():
-    from agvsim.closed_loop import with_turn_blur as _with_turn_blur
-    from agvsim.observe import SimObservation
+    from agvsim.loop.closed_loop import with_turn_blur as _with_turn_blur
+    from agvsim.sensors.observe import SimObservation
 
     obs = SimObservation(3.0, 0.1, 0.5, np.diag([1e-6, 1e-8, 1e-6]), "positive", "T01")
     still = _with_turn_blur(obs, 0.0, (0.01, 0.0, 0.03))

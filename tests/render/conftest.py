@@ -39,7 +39,7 @@ def hall_dict() -> dict:
 
 @pytest.fixture(scope="session")
 def gl_context():
-    from agvsim.render.gl import GLContext
+    from agvsim.sensors.render.gl import GLContext
 
     ctx = GLContext()
     yield ctx
@@ -48,14 +48,14 @@ def gl_context():
 
 @pytest.fixture(scope="session")
 def hall():
-    from agvsim.world.map import map_from_dict
+    from agvsim.world import map_from_dict
 
     return map_from_dict(hall_dict(), name="test_hall")
 
 
 @pytest.fixture(scope="session")
 def mount():
-    from agvsim.render.mount import CameraMount
+    from agvsim.sensors.render.mount import CameraMount
 
     return CameraMount(forward=0.4, lateral=0.0, height=CAMERA_HEIGHT, yaw=0.0)
 
@@ -63,7 +63,7 @@ def mount():
 @pytest.fixture(scope="session")
 def hall_renderers(hall, mount, gl_context):
     """``{16: renderer, 50: renderer}`` over the hall, sharing the session's GL context."""
-    from agvsim.render.renderer import CameraRenderer
+    from agvsim.sensors.render.renderer import CameraRenderer
 
     return {lens: CameraRenderer(hall, Camera.thesis(lens), mount, context=gl_context) for lens in (16, 50)}
 

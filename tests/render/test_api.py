@@ -8,15 +8,15 @@ import sys
 import numpy as np
 import pytest
 
-from agvsim.render.scene import DISTRACTOR_CLEARANCE, build_scene
-from agvsim.world.map import load_map
+from agvsim.sensors.render.scene import DISTRACTOR_CLEARANCE, build_scene
+from agvsim.world import load_map
 
 
 def test_importing_and_building_a_renderer_opens_no_gl():
     code = (
-        "import sys, agvsim, agvsim.render, agvsim.render.renderer, agvsim.cli\n"
-        "from agvsim.render import CameraRenderer, RenderConditions\n"
-        "from agvsim.world.map import load_map\n"
+        "import sys, agvsim, agvsim.sensors.render, agvsim.sensors.render.renderer, agvsim.cli\n"
+        "from agvsim.sensors.render import CameraRenderer, RenderConditions\n"
+        "from agvsim.world import load_map\n"
         "r = CameraRenderer(load_map('corridor'))\n"
         "agvsim.cli.build_parser()\n"
         "bad = [m for m in ('pyrender', 'OpenGL') if m in sys.modules]\n"
@@ -29,7 +29,7 @@ def test_importing_and_building_a_renderer_opens_no_gl():
 
 
 def test_bad_render_input_fails_before_any_gl():
-    from agvsim.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
 
     r = CameraRenderer(load_map("corridor"))
     for pose in ((1.0, 1.0, float("nan")), (1.0, 1.0), (float("inf"), 0.0, 0.0)):
@@ -77,7 +77,7 @@ def test_target_quads_have_the_exact_geometry():
 
 
 def test_target_texture_edges_on_texels():
-    from agvsim.render.textures import TARGET_TEXELS_PER_BAR, target_texture
+    from agvsim.sensors.render.textures import TARGET_TEXELS_PER_BAR, target_texture
     from localizer import TargetSpec
 
     tex = target_texture(TargetSpec(), "positive")
@@ -96,8 +96,8 @@ def test_target_texture_edges_on_texels():
 _FORK_SCRIPT = """
 import os, sys
 import numpy as np
-from agvsim.render import CameraRenderer, RenderConditions
-from agvsim.world.map import load_map
+from agvsim.sensors.render import CameraRenderer, RenderConditions
+from agvsim.world import load_map
 r = CameraRenderer(load_map('corridor'))          # built in the parent, no GL context yet
 pids = []
 for k in range(2):                                  # like AsyncVectorEnv's workers
@@ -121,8 +121,8 @@ def test_renderer_built_before_fork_renders_in_children():
 
 _HASH_SCRIPT = """
 import hashlib, numpy as np
-from agvsim.render import CameraRenderer, RenderConditions
-from agvsim.world.map import load_map
+from agvsim.sensors.render import CameraRenderer, RenderConditions
+from agvsim.world import load_map
 r = CameraRenderer(load_map('plant_floor'))
 h = hashlib.sha1()
 for p in [(47.0, 4.0, -1.2), (4.0, 8.5, -1.57), (35.0, 20.0, 0.0)]:
@@ -138,7 +138,7 @@ def test_same_seed_same_frame_across_processes_and_contexts(gl_context):
     other scenes before): no dependence on draw order, uninitialised memory or context history."""
     import hashlib
 
-    from agvsim.render import CameraRenderer, RenderConditions
+    from agvsim.sensors.render import CameraRenderer, RenderConditions
 
     out = subprocess.run([sys.executable, "-c", _HASH_SCRIPT], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -154,8 +154,8 @@ def test_same_seed_same_frame_across_processes_and_contexts(gl_context):
 def test_closing_one_context_leaves_another_working():
     code = (
         "import numpy as np\n"
-        "from agvsim.render import CameraRenderer, RenderConditions\n"
-        "from agvsim.world.map import load_map\n"
+        "from agvsim.sensors.render import CameraRenderer, RenderConditions\n"
+        "from agvsim.world import load_map\n"
         "m = load_map('corridor')\n"
         "a, b = CameraRenderer(m), CameraRenderer(m)\n"
         "ia, _ = a.render((2, 1.5, 0), RenderConditions.ideal())\n"
@@ -169,7 +169,7 @@ def test_closing_one_context_leaves_another_working():
 
 
 def test_platform_choice_and_the_install_hint(monkeypatch):
-    from agvsim.render import gl
+    from agvsim.sensors.render import gl
 
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
     monkeypatch.setattr(gl, "egl_works", lambda: False)

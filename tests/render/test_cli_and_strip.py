@@ -29,7 +29,7 @@ def test_render_cli_writes_frame_and_truth(tmp_path):
     assert data["camera"]["fx"] == pytest.approx(16.0 / 8.8 * 512)
     assert data["camera"]["cx"] == 256.0 and data["camera"]["width"] == 512
     ids = {t["id"] for t in data["targets"]}
-    from agvsim.world.map import load_map
+    from agvsim.world import load_map
 
     assert "T05" in ids and ids == {t.id for t in load_map("plant_floor").targets}  # one entry per map target
     t05 = next(t for t in data["targets"] if t["id"] == "T05")
@@ -56,10 +56,10 @@ def test_bench_render_json():
 
 
 def test_camera_strip(tmp_path, gl_context):
-    from agvsim.render.mount import CameraMount
-    from agvsim.render.renderer import CameraRenderer
-    from agvsim.render.strip import route_poses, save_camera_strip
-    from agvsim.world.map import load_map
+    from agvsim.sensors.render.mount import CameraMount
+    from agvsim.sensors.render.renderer import CameraRenderer
+    from agvsim.sensors.render.strip import route_poses, save_camera_strip
+    from agvsim.world import load_map
 
     m = load_map("plant_floor")
     mount = CameraMount.side_looking("right")

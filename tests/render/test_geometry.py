@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from agvsim.render.placement import vehicle_pose_for_target
-from agvsim.render.renderer import RenderConditions
+from agvsim.sensors.render.placement import vehicle_pose_for_target
+from agvsim.sensors.render.renderer import RenderConditions
 from localizer.geometry import TargetPose
 
 pytestmark = pytest.mark.render

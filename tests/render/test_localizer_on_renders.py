@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from agvsim.commands.reproduce import THESIS_POINTS
-from agvsim.render.placement import vehicle_pose_for_target
-from agvsim.render.renderer import RenderConditions
+from agvsim.sensors.render.placement import vehicle_pose_for_target
+from agvsim.sensors.render.renderer import RenderConditions
 from localizer import detect_targets
 
 pytestmark = pytest.mark.render

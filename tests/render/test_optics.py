@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from agvsim.render.placement import vehicle_pose_for_target
-from agvsim.render.renderer import CameraRenderer, RenderConditions
+from agvsim.sensors.render.placement import vehicle_pose_for_target
+from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
 from localizer import Camera, detect_targets
 
 pytestmark = pytest.mark.render

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from agvsim.render import sensor as sn
-from agvsim.render.lighting import LIGHTING_LEVELS, lighting_level
-from agvsim.render.mount import CameraMount, CameraPose, check_pose
-from agvsim.render.renderer import RenderConditions
+from agvsim.sensors.render import sensor as sn
+from agvsim.sensors.render.lighting import LIGHTING_LEVELS, lighting_level
+from agvsim.sensors.render.mount import CameraMount, CameraPose, check_pose
+from agvsim.sensors.render.renderer import RenderConditions
 from localizer import Camera
 
 

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from agvsim.render.placement import vehicle_pose_for_target
-from agvsim.render.renderer import RenderConditions
+from agvsim.sensors.render.placement import vehicle_pose_for_target
+from agvsim.sensors.render.renderer import RenderConditions
 
 pytestmark = pytest.mark.render
 
@@ -77,8 +77,8 @@ def test_corners_and_polarity_match_the_image(hall_renderers, hall, mount, targe
 
 def test_jitter_moves_the_image_and_the_truth_together(hall, gl_context, rng):
     """With pitch/roll jitter the image shifts by about fy * pitch rows and the truth's corners follow."""
-    from agvsim.render.mount import CameraMount
-    from agvsim.render.renderer import CameraRenderer
+    from agvsim.sensors.render.mount import CameraMount
+    from agvsim.sensors.render.renderer import CameraRenderer
     from localizer import Camera
 
     mount = CameraMount(height=1.2, pitch_sigma=math.radians(1.0), roll_sigma=math.radians(0.5))
@@ -113,8 +113,8 @@ def test_bright_lighting_saturates_normal_does_not(hall_renderers, hall, mount, 
 
 def test_map_zones_light_the_frame(hall, gl_context, rng):
     """Without an override, a surface in the hall's dim corner (level 0.3) images darker."""
-    from agvsim.render.mount import CameraMount
-    from agvsim.render.renderer import CameraRenderer
+    from agvsim.sensors.render.mount import CameraMount
+    from agvsim.sensors.render.renderer import CameraRenderer
 
     r = CameraRenderer(hall, mount=CameraMount(height=1.2), context=gl_context)
     # look at the west wall: first inside the dim corner (y 20..30), then outside it
@@ -148,8 +148,8 @@ def test_rgb_on_request(hall_renderers, hall, mount):
 def test_renderers_of_one_map_share_the_gl_scene(hall, gl_context, hall_renderers, mount):
     """A second camera on the same map (here side-looking) reuses the uploaded scene; frames
     interleaved with it are unchanged."""
-    from agvsim.render.mount import CameraMount
-    from agvsim.render.renderer import CameraRenderer
+    from agvsim.sensors.render.mount import CameraMount
+    from agvsim.sensors.render.renderer import CameraRenderer
 
     front = hall_renderers[16]
     side = CameraRenderer(hall, mount=CameraMount.side_looking("right", height=1.2), context=gl_context)

@@ -7,13 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from agvsim.simulation import SimConfig, Simulation
+from agvsim.vehicle.simulation import SimConfig, Simulation
 from agvsim.vehicle.encoders import OdometryErrorModel
 
 
 def bare_world(walls=(), obstacles=()):
     """A world with only the given walls ((id, [[x,y],...], thickness)) and
-    obstacles ((id, [[x,y],...])) — what :func:`agvsim.physics.build_space` reads."""
+    obstacles ((id, [[x,y],...])) — what :func:`agvsim.vehicle.physics.build_space` reads."""
     return SimpleNamespace(
         walls=[SimpleNamespace(id=i, points=np.asarray(p, float), thickness=t) for i, p, t in walls],
         obstacles=[SimpleNamespace(id=i, polygon=np.asarray(p, float)) for i, p in obstacles],

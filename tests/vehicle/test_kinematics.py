@@ -113,7 +113,7 @@ def test_bad_vehicle_params_are_rejected(field, value):
 
 
 def test_control_rate_must_divide_physics_rate():
-    from agvsim.simulation import SimConfig
+    from agvsim.vehicle.simulation import SimConfig
 
     with pytest.raises(ValueError, match="whole multiple"):
         SimConfig(physics_rate=100.0, control_rate=30.0)

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from agvsim.views import TopDownView, Trajectory
-from agvsim.world.map import load_map
+from agvsim.analysis.topdown import TopDownView, Trajectory
+from agvsim.world import load_map
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import agvsim
-from agvsim.world.map import (Map, MapError, MapTarget, Wall, load_map, map_from_dict,
+from agvsim.world import (Map, MapError, MapTarget, Wall, load_map, map_from_dict,
                               maps_dir, shipped_maps)
 from localizer.target import TargetSpec
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from agvsim.world.checks import route_sightings
-from agvsim.world.map import load_map, map_from_dict, shipped_maps
+from agvsim.world import load_map, map_from_dict, shipped_maps
 
 SHIPPED = ["corridor", "plant_floor"]
 CLEARANCE = 0.6  # m, for the 1.0 x 0.7 m AGV

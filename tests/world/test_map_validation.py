@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 import yaml
 
-from agvsim.world.map import MapError, load_map
+from agvsim.world import MapError, load_map
 
 
 def room() -> dict[str, Any]:

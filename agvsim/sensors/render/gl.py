@@ -4,7 +4,7 @@ PyOpenGL binds its platform (``PYOPENGL_PLATFORM``) when ``OpenGL`` is first
 imported, and pyrender imports ``OpenGL`` at import time, so the choice must be
 made before the first ``import pyrender``. :func:`import_pyrender` does that,
 and it is only called when a frame is first needed (never at import of
-:mod:`agvsim.render`), so building a renderer opens no GL context and a
+:mod:`agvsim.sensors.render`), so building a renderer opens no GL context and a
 process may fork safely before its first frame.
 
 Order of preference:
@@ -109,7 +109,7 @@ def import_pyrender():
         platform = os.environ.get("PYOPENGL_PLATFORM", "")
         if platform not in PLATFORMS:
             raise RenderUnavailable(
-                "OpenGL was imported before agvsim.render chose a headless platform "
+                "OpenGL was imported before agvsim.sensors.render chose a headless platform "
                 f"(PYOPENGL_PLATFORM={platform!r}); set PYOPENGL_PLATFORM=egl before importing OpenGL")
     else:
         platform = choose_platform()

@@ -22,7 +22,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.geometry import TargetPose
-from agvsim.render.mount import CameraPose
+from agvsim.sensors.render.mount import CameraPose
 
 OCCLUSION_GRID = (7, 5)  # sample points across x down the printed face
 MIN_BAR_PX = 5.0
@@ -199,7 +199,7 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
 
 
 def _level(cam_pose: CameraPose) -> np.ndarray:
-    from agvsim.render.mount import level_rotation
+    from agvsim.sensors.render.mount import level_rotation
 
     return level_rotation(cam_pose.heading)
 

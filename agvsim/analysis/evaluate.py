@@ -1,4 +1,4 @@
-r"""Metrics of closed-loop runs (:class:`agvsim.mission.MissionLog`).
+r"""Metrics of closed-loop runs (:class:`agvsim.loop.mission.MissionLog`).
 
 Per run:
 
@@ -26,6 +26,8 @@ import math
 import numpy as np
 from scipy.stats import chi2
 
+from localizer.numeric import wrap_angle
+
 __all__ = ["FLOORS", "floors_met", "run_metrics", "summarize"]
 
 NEES_BOUNDS = (float(chi2.ppf(0.025, 3)), float(chi2.ppf(0.975, 3)))
@@ -41,13 +43,9 @@ FLOORS = {
 }
 
 
-def _wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 def _errors(log):
     e = log.estimate[:, :2] - log.true_pose[:, :2]
-    dh = _wrap(log.estimate[:, 2] - log.true_pose[:, 2])
+    dh = wrap_angle(log.estimate[:, 2] - log.true_pose[:, 2])
     return e, dh
 
 
@@ -58,7 +56,7 @@ def _nees(log) -> np.ndarray:
 
 
 def run_metrics(log) -> dict:
-    """Metrics of one :class:`~agvsim.mission.MissionLog` (SI units; see the module docstring)."""
+    """Metrics of one :class:`~agvsim.loop.mission.MissionLog` (SI units; see the module docstring)."""
     if len(log.time) == 0:
         raise ValueError("run_metrics: the run has no steps")
     e, dh = _errors(log)

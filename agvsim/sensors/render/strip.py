@@ -1,6 +1,6 @@
 """A strip of camera frames along a route, with the targets the localizer found (for ``agvsim demo``).
 
-    >>> from agvsim.render.strip import route_poses, save_camera_strip
+    >>> from agvsim.sensors.render.strip import route_poses, save_camera_strip
     >>> floor = load_map("plant_floor")
     >>> summary = save_camera_strip(floor, route_poses(floor, 8), "out/demo/camera_strip.png",
     ...                             rng=np.random.default_rng(0))
@@ -25,7 +25,7 @@ def route_poses(world_map, n: int, route: str = "default", mount=None,
     sees a target 2-8 m away near its optical axis, when there is one, so the strip
     shows targets rather than blank walls.
     """
-    from agvsim.render.mount import CameraMount
+    from agvsim.sensors.render.mount import CameraMount
 
     mount = mount if mount is not None else CameraMount()
     if n < 1:
@@ -83,7 +83,7 @@ def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng:
         path: output PNG.
         camera: intrinsics (default thesis 16 mm); ignored when ``renderer`` is given.
         rng: randomness for sensor noise (default: ``numpy.random.default_rng(0)``).
-        renderer: an existing :class:`~agvsim.render.renderer.CameraRenderer` to reuse
+        renderer: an existing :class:`~agvsim.sensors.render.renderer.CameraRenderer` to reuse
             (recommended: one per process).
         mount, conditions: for a new renderer / every frame.
         columns: frames per row of the strip. scale: size of each tile relative to the frame.
@@ -94,7 +94,7 @@ def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng:
     import cv2
 
     from localizer import annotate, detect_targets
-    from agvsim.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
 
     if renderer is None:
         renderer = CameraRenderer(world_map, camera=camera, mount=mount)

@@ -1,4 +1,4 @@
-"""Where the camera sits on the vehicle, and the camera's pose in the map.
+"""Where the camera sits on the vehicle: the project's one camera-mount type.
 
 Frames:
 
@@ -7,6 +7,9 @@ Frames:
 * camera (OpenCV, as in :mod:`localizer.camera`): x right, y down, z forward.
   With no jitter the optical axis is horizontal and image rows are level
   (thesis §3.5 assumption 1).
+
+The pose filter (:mod:`localizer.filter`) reads ``forward``, ``lateral`` and
+``yaw`` (the top view); the renderer also reads ``height`` and the jitter.
 """
 from __future__ import annotations
 
@@ -15,12 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from localizer.numeric import check_number, wrap_angle
 
-def _finite(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(value)):
-        raise ValueError(f"CameraMount.{name} must be a finite number, got {value!r}")
-    return float(value)
+__all__ = ["CameraMount", "check_pose"]
 
 
 @dataclass(frozen=True)
@@ -46,11 +46,10 @@ class CameraMount:
 
     def __post_init__(self) -> None:
         for name in ("forward", "lateral", "height", "yaw", "pitch_sigma", "roll_sigma"):
-            object.__setattr__(self, name, _finite(name, getattr(self, name)))
-        if self.height <= 0:
-            raise ValueError(f"CameraMount.height must be above the floor (m > 0), got {self.height!r}")
-        if self.pitch_sigma < 0 or self.roll_sigma < 0:
-            raise ValueError("CameraMount.pitch_sigma and roll_sigma must be >= 0 (rad)")
+            object.__setattr__(self, name, check_number(f"CameraMount.{name}", getattr(self, name)))
+        check_number("CameraMount.height", self.height, low=0.0, low_open=True, unit="m above the floor")
+        check_number("CameraMount.pitch_sigma", self.pitch_sigma, low=0.0, unit="rad")
+        check_number("CameraMount.roll_sigma", self.roll_sigma, low=0.0, unit="rad")
 
     @classmethod
     def forward_looking(cls, height: float = 1.2, **kw) -> "CameraMount":
@@ -84,7 +83,7 @@ class CameraMount:
         c, s = math.cos(th), math.sin(th)
         x = float(camera_xy[0]) - (c * self.forward - s * self.lateral)
         y = float(camera_xy[1]) - (s * self.forward + c * self.lateral)
-        return x, y, math.atan2(math.sin(th), math.cos(th))
+        return x, y, wrap_angle(th)
 
     def draw_jitter(self, rng: np.random.Generator | None) -> tuple[float, float]:
         """``(pitch, roll)`` (rad) for one frame; zeros when the sigmas are 0 or ``rng`` is None."""
@@ -104,67 +103,3 @@ def check_pose(pose) -> tuple[float, float, float]:
     if not np.all(np.isfinite(vals)):
         raise ValueError(f"vehicle pose must be finite (x m, y m, theta rad), got {pose!r}")
     return float(vals[0]), float(vals[1]), float(vals[2])
-
-
-def level_rotation(heading: float) -> np.ndarray:
-    """``(3, 3)`` camera-to-map rotation of a level camera looking along ``heading`` (rad).
-
-    Columns: camera x (right), y (down), z (forward) in map coordinates.
-    """
-    c, s = math.cos(heading), math.sin(heading)
-    return np.array([[s, 0.0, c], [-c, 0.0, s], [0.0, -1.0, 0.0]])
-
-
-def jitter_rotation(pitch: float, roll: float) -> np.ndarray:
-    """``(3, 3)`` rotation of the actual camera in the level camera's frame.
-
-    ``pitch`` > 0 tilts the optical axis up (rotation about camera x);
-    ``roll`` > 0 rotates the image clockwise as seen by the camera (about camera z).
-    """
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cr, sr = math.cos(roll), math.sin(roll)
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
-    rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
-    return rx @ rz
-
-
-@dataclass(frozen=True)
-class CameraPose:
-    """The camera's pose for one frame.
-
-    Attributes:
-        position: ``(3,)`` lens centre in the map (m).
-        heading: level optical axis direction (rad, CCW from +x).
-        rotation: ``(3, 3)`` camera-to-map rotation (columns x right, y down, z forward),
-            jitter included.
-        pitch, roll: the jitter drawn for this frame (rad).
-    """
-
-    position: np.ndarray  # (3,) m
-    heading: float  # rad
-    rotation: np.ndarray  # (3, 3)
-    pitch: float = 0.0  # rad
-    roll: float = 0.0  # rad
-
-    @classmethod
-    def from_vehicle(cls, mount: CameraMount, vehicle_pose, pitch: float = 0.0, roll: float = 0.0) -> "CameraPose":
-        pos, heading = mount.camera_pose(vehicle_pose)
-        rot = level_rotation(heading) @ jitter_rotation(pitch, roll)
-        return cls(pos, heading, rot, pitch, roll)
-
-    def to_camera(self, points_map) -> np.ndarray:
-        """``(..., 3)`` map points (m) -> camera frame (m)."""
-        p = np.asarray(points_map, dtype=float)
-        return (p - self.position) @ self.rotation
-
-    def to_level_camera(self, points_map) -> np.ndarray:
-        """``(..., 3)`` map points (m) -> the level (jitter-free) camera frame (m)."""
-        p = np.asarray(points_map, dtype=float)
-        return (p - self.position) @ level_rotation(self.heading)
-
-    def gl_pose(self) -> np.ndarray:
-        """``(4, 4)`` camera-to-map transform in OpenGL's camera convention (x right, y up, z back)."""
-        m = np.eye(4)
-        m[:3, :3] = self.rotation @ np.diag([1.0, -1.0, -1.0])
-        m[:3, 3] = self.position
-        return m

@@ -30,7 +30,7 @@ from typing import Mapping
 
 import numpy as np
 
-from agvsim.render import textures as tx
+from agvsim.sensors.render import textures as tx
 
 WALL_INSET = 0.002  # m, rendered wall faces sit this far behind the map's wall surface
 DISTRACTOR_CLEARANCE = 1.0  # m along the wall from any target's centre to a distractor's edge

@@ -1,13 +1,13 @@
 """``CameraRenderer``: camera frames of a map, rendered with pyrender, with ground truth.
 
-    >>> from agvsim.world.map import load_map
-    >>> from agvsim.render import CameraRenderer, RenderConditions
+    >>> from agvsim.world import load_map
+    >>> from agvsim.sensors.render import CameraRenderer, RenderConditions
     >>> r = CameraRenderer(load_map("plant_floor"))          # no GL context yet
     >>> image, truth = r.render((30.0, 4.0, -1.5708), RenderConditions(), np.random.default_rng(0))
     >>> [t.id for t in truth.visible]
 
 One renderer per world, reused for every frame; the GL context is opened at
-the first frame (see :class:`agvsim.render.gl.GLContext`, which several
+the first frame (see :class:`agvsim.sensors.render.gl.GLContext`, which several
 renderers in one process should share).
 
 Pipeline per frame:
@@ -17,12 +17,12 @@ Pipeline per frame:
    point is shifted by half a pixel (OpenGL's pixel centres are at ``j + 0.5``,
    :class:`localizer.Camera`'s at ``j``); pyrender's readback already flips rows
    so row 0 is the top. Box-downsampled to the camera's resolution.
-2. Deferred lighting (:mod:`agvsim.render.lighting`): ambient + ceiling lamps,
+2. Deferred lighting (:mod:`agvsim.sensors.render.lighting`): ambient + ceiling lamps,
    times the map's lighting zone level (or the override) at each pixel's
    surface point, found from the depth buffer.
-3. Sensor (:mod:`agvsim.render.sensor`): motion blur, defocus, distortion,
+3. Sensor (:mod:`agvsim.sensors.render.sensor`): motion blur, defocus, distortion,
    exposure, noise, saturation, 8 bits.
-4. Truth (:mod:`agvsim.render.truth`): d, α, β, corners, bbox, visibility by depth test.
+4. Truth (:mod:`agvsim.sensors.render.truth`): d, α, β, corners, bbox, visibility by depth test.
 """
 from __future__ import annotations
 
@@ -34,12 +34,12 @@ from types import MappingProxyType
 import numpy as np
 
 from localizer.camera import Camera
-from agvsim.render.gl import GLContext
-from agvsim.render.lighting import Illumination, lighting_level
-from agvsim.render.mount import CameraMount, CameraPose, check_pose
-from agvsim.render.scene import SceneDescription, build_scene
-from agvsim.render import sensor as sn
-from agvsim.render.truth import FrameTruth, frame_truth
+from agvsim.sensors.render.gl import GLContext
+from agvsim.sensors.render.lighting import Illumination, lighting_level
+from agvsim.sensors.render.mount import CameraMount, CameraPose, check_pose
+from agvsim.sensors.render.scene import SceneDescription, build_scene
+from agvsim.sensors.render import sensor as sn
+from agvsim.sensors.render.truth import FrameTruth, frame_truth
 
 ZNEAR = 0.05  # m
 ZFAR = 200.0  # m
@@ -62,7 +62,7 @@ class RenderConditions:
 
     Attributes:
         lighting: None to use the map's lighting zones, or an override for the whole
-            frame: ``"dim"``, ``"normal"``, ``"bright"`` (:data:`~agvsim.render.lighting.LIGHTING_LEVELS`)
+            frame: ``"dim"``, ``"normal"``, ``"bright"`` (:data:`~agvsim.sensors.render.lighting.LIGHTING_LEVELS`)
             or a relative level > 0.
         exposure: relative exposure x gain (1.0: a white target in normal light ~215 grey levels).
         defocus_px: Gaussian optical blur sigma (px), everywhere.
@@ -152,7 +152,7 @@ class CameraRenderer:
         return self._gl is not None
 
     def _build_gl(self):
-        from agvsim.render.gl import import_pyrender
+        from agvsim.sensors.render.gl import import_pyrender
 
         pyrender, _ = import_pyrender()
         scene = self.context.shared_scene(self.map, lambda: self._make_scene(pyrender))
@@ -170,7 +170,7 @@ class CameraRenderer:
         """The pyrender scene of :attr:`scene` (meshes and textures; no camera)."""
         from pyrender.constants import GLTF
 
-        from agvsim.render.textures import to_rgba8
+        from agvsim.sensors.render.textures import to_rgba8
 
         bg = float(self.scene.background)
         scene = pyrender.Scene(bg_color=[bg, bg, bg, 1.0], ambient_light=[1.0, 1.0, 1.0])
@@ -274,7 +274,7 @@ class CameraRenderer:
             rng: the only source of randomness (noise, jitter); required when they are on.
         Returns:
             ``(image, truth)``: ``(H, W)`` uint8 grey (or ``(H, W, 3)`` if ``conditions.rgb``) and
-            the :class:`~agvsim.render.truth.FrameTruth`.
+            the :class:`~agvsim.sensors.render.truth.FrameTruth`.
         Raises:
             ValueError: non-finite pose, bad conditions, noise/jitter without ``rng``.
         """

@@ -11,10 +11,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agvsim.physics import build_space
+from agvsim.vehicle.physics import build_space
+from localizer.numeric import check_number
 from agvsim.vehicle.dynamics import DiffDriveVehicle, VehicleParams
 from agvsim.vehicle.encoders import EncoderModel, OdometryErrorModel
-from agvsim.vehicle.odometry import DeadReckoning, OdometryIncrement, arc_chord_factor
+from agvsim.vehicle.odometry import DeadReckoning, arc_chord_factor
 
 
 @dataclass(frozen=True)
@@ -28,9 +29,7 @@ class SimConfig:
 
     def __post_init__(self) -> None:
         for name in ("physics_rate", "control_rate"):
-            value = getattr(self, name)
-            if not math.isfinite(value) or value <= 0:
-                raise ValueError(f"SimConfig.{name} must be a positive rate in Hz, got {value!r}")
+            check_number(f"SimConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit="Hz")
         ratio = self.physics_rate / self.control_rate
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(
@@ -55,17 +54,24 @@ class SimConfig:
 
 @dataclass(frozen=True)
 class StepResult:
-    """What one control step produced.
+    """What one control step of the vehicle produced.
 
     Attributes:
-        odometry: the (Δs, Δθ) increment and dead-reckoned pose.
+        ds: odometry distance increment over the step (m; negative when reversing).
+        dtheta: odometry heading increment over the step (rad).
+        command: the (v m/s, ω rad/s) actually applied: the request clipped to the
+            vehicle's limits (:meth:`VehicleParams.clip_command`), once, here.
         contacts: ids of walls/obstacles touched during the step.
         collided: a contact began during the step.
+        in_contact: touching a wall or obstacle at the end of the step.
     """
 
-    odometry: OdometryIncrement
+    ds: float  # m
+    dtheta: float  # rad
+    command: tuple[float, float]  # m/s, rad/s
     contacts: frozenset[str]
     collided: bool
+    in_contact: bool
 
 
 class Simulation:
@@ -142,5 +148,6 @@ class Simulation:
         self.distance += distance
         self.steps += self.config.substeps
         self.time += self.config.control_dt
-        return StepResult(odometry.take_increment(), frozenset(contacts.since_reset),
-                          contacts.events > events_before)
+        ds, dtheta = odometry.take_increment()
+        return StepResult(ds, dtheta, (v, omega), frozenset(contacts.since_reset),
+                          contacts.events > events_before, bool(contacts.touching))

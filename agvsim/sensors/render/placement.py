@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from agvsim.render.mount import CameraMount
+from agvsim.sensors.render.mount import CameraMount
 
 
 def camera_pose_facing(target, distance: float, alpha: float, beta: float = 0.0) -> tuple[np.ndarray, float]:

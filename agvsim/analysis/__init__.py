@@ -1,0 +1,31 @@
+"""Analysis on the side of the loop: metrics of runs, plots and top-down pictures.
+
+* :mod:`agvsim.analysis.evaluate`: metrics of :class:`~agvsim.loop.log.MissionLog` runs and floors.
+* :mod:`agvsim.analysis.plots`: error-against-distance plots (matplotlib).
+* :mod:`agvsim.analysis.topdown`: the top-down view of the floor (OpenCV drawing, no OpenGL).
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "TopDownView": "agvsim.analysis.topdown",
+    "Trajectory": "agvsim.analysis.topdown",
+    "error_vs_distance": "agvsim.analysis.plots",
+    "run_metrics": "agvsim.analysis.evaluate",
+    "summarize": "agvsim.analysis.evaluate",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'agvsim.analysis' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

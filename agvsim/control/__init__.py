@@ -1,4 +1,0 @@
-"""Path following for the AGV."""
-from agvsim.control.pure_pursuit import FollowerParams, PurePursuit, RoutePath
-
-__all__ = ["FollowerParams", "PurePursuit", "RoutePath"]

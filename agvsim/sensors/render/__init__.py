@@ -1,0 +1,50 @@
+"""Camera frames of wall targets, rendered with pyrender (issue 4).
+
+Importing this package imports neither pyrender nor OpenGL; the GL context is
+opened when the first frame is rendered (:mod:`agvsim.sensors.render.gl`).
+
+    >>> import numpy as np
+    >>> from agvsim.world import load_map
+    >>> from agvsim.sensors.render import CameraRenderer, CameraMount, RenderConditions
+    >>> r = CameraRenderer(load_map("plant_floor"), mount=CameraMount(height=1.2))
+    >>> image, truth = r.render((30.0, 4.0, -1.5708), RenderConditions(lighting="bright"),
+    ...                         np.random.default_rng(0))
+    >>> truth.to_dict()["targets"][0]["distance"]
+
+Modules: ``gl`` (headless platform), ``textures``, ``scene``, ``lighting``,
+``mount``, ``sensor``, ``truth``, ``renderer``, ``strip`` (demo strip of frames).
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_LAZY = {
+    "CameraRenderer": "agvsim.sensors.render.renderer",
+    "RenderConditions": "agvsim.sensors.render.renderer",
+    "CameraMount": "agvsim.sensors.render.mount",
+    "CameraPose": "agvsim.sensors.render.mount",
+    "SensorModel": "agvsim.sensors.render.sensor",
+    "GLContext": "agvsim.sensors.render.gl",
+    "RenderUnavailable": "agvsim.sensors.render.gl",
+    "FrameTruth": "agvsim.sensors.render.truth",
+    "TargetTruth": "agvsim.sensors.render.truth",
+    "LIGHTING_LEVELS": "agvsim.sensors.render.lighting",
+    "build_scene": "agvsim.sensors.render.scene",
+    "save_camera_strip": "agvsim.sensors.render.strip",
+    "camera_pose_facing": "agvsim.sensors.render.placement",
+    "vehicle_pose_for_target": "agvsim.sensors.render.placement",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'agvsim.sensors.render' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

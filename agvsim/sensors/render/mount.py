@@ -1,0 +1,84 @@
+"""The camera's pose in the map for one frame (the mount itself is :class:`localizer.mount.CameraMount`).
+
+Frames:
+
+* map: x east, y north, z up (m); vehicle pose ``(x, y, θ)``, θ CCW from +x.
+* vehicle: x forward, y left, z up, origin at the vehicle's centre on the floor.
+* camera (OpenCV, as in :mod:`localizer.camera`): x right, y down, z forward.
+  With no jitter the optical axis is horizontal and image rows are level
+  (thesis §3.5 assumption 1).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from localizer.mount import CameraMount, check_pose
+
+__all__ = ["CameraMount", "CameraPose", "check_pose", "jitter_rotation", "level_rotation"]
+
+
+def level_rotation(heading: float) -> np.ndarray:
+    """``(3, 3)`` camera-to-map rotation of a level camera looking along ``heading`` (rad).
+
+    Columns: camera x (right), y (down), z (forward) in map coordinates.
+    """
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([[s, 0.0, c], [-c, 0.0, s], [0.0, -1.0, 0.0]])
+
+
+def jitter_rotation(pitch: float, roll: float) -> np.ndarray:
+    """``(3, 3)`` rotation of the actual camera in the level camera's frame.
+
+    ``pitch`` > 0 tilts the optical axis up (rotation about camera x);
+    ``roll`` > 0 rotates the image clockwise as seen by the camera (about camera z).
+    """
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cr, sr = math.cos(roll), math.sin(roll)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+    rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
+    return rx @ rz
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """The camera's pose for one frame.
+
+    Attributes:
+        position: ``(3,)`` lens centre in the map (m).
+        heading: level optical axis direction (rad, CCW from +x).
+        rotation: ``(3, 3)`` camera-to-map rotation (columns x right, y down, z forward),
+            jitter included.
+        pitch, roll: the jitter drawn for this frame (rad).
+    """
+
+    position: np.ndarray  # (3,) m
+    heading: float  # rad
+    rotation: np.ndarray  # (3, 3)
+    pitch: float = 0.0  # rad
+    roll: float = 0.0  # rad
+
+    @classmethod
+    def from_vehicle(cls, mount: CameraMount, vehicle_pose, pitch: float = 0.0, roll: float = 0.0) -> "CameraPose":
+        pos, heading = mount.camera_pose(vehicle_pose)
+        rot = level_rotation(heading) @ jitter_rotation(pitch, roll)
+        return cls(pos, heading, rot, pitch, roll)
+
+    def to_camera(self, points_map) -> np.ndarray:
+        """``(..., 3)`` map points (m) -> camera frame (m)."""
+        p = np.asarray(points_map, dtype=float)
+        return (p - self.position) @ self.rotation
+
+    def to_level_camera(self, points_map) -> np.ndarray:
+        """``(..., 3)`` map points (m) -> the level (jitter-free) camera frame (m)."""
+        p = np.asarray(points_map, dtype=float)
+        return (p - self.position) @ level_rotation(self.heading)
+
+    def gl_pose(self) -> np.ndarray:
+        """``(4, 4)`` camera-to-map transform in OpenGL's camera convention (x right, y up, z back)."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation @ np.diag([1.0, -1.0, -1.0])
+        m[:3, 3] = self.position
+        return m

@@ -1,0 +1,103 @@
+"""The ``rendered`` source: frames of the scene from the renderer, targets from the localizer.
+
+The real thing: :class:`agvsim.sensors.render.CameraRenderer` draws the frame at
+the true pose (lighting zones, sensor noise, motion blur) and
+:func:`localizer.detect_targets` finds the targets.
+"""
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from agvsim.sensors.base import SimObservation
+from agvsim.sensors.vision import VisionConfig, match_truth
+from localizer.geometry import TargetPose
+from localizer.numeric import check_number
+
+__all__ = ["RenderedSource"]
+
+
+class RenderedSource:
+    """Frames from the issue-4 renderer (:class:`agvsim.sensors.render.CameraRenderer`), targets from
+    :func:`localizer.detect_targets`.
+
+    The renderer (one GL context per process) is created lazily at the first
+    frame, so the source can be built before a fork/spawn. Each frame uses the
+    map's lighting zones, sensor noise, and motion blur from the vehicle's
+    current command (the ``command`` given to :meth:`observe`).
+
+    Args:
+        world_map, vision: as for :class:`GeometricSource`.
+        conditions: keyword overrides of :class:`agvsim.sensors.render.RenderConditions`
+            (e.g. ``{"defocus_px": 0.5}``); ``velocity`` is filled in per frame.
+    """
+
+    name: ClassVar[str] = "rendered"
+    draws_frames: ClassVar[bool] = True
+    has_exposure: ClassVar[bool] = True
+
+    def __init__(self, world_map, vision: VisionConfig | None = None, conditions: dict | None = None) -> None:
+        self.map = world_map
+        self.vision = (vision or VisionConfig()).for_map(world_map)
+        self.conditions = dict(conditions or {})
+        if "velocity" in self.conditions:
+            raise ValueError("RenderedSource conditions: 'velocity' is set per frame from the command; "
+                             "do not pass it")
+        self.camera = self.vision.camera
+        self._renderer = None
+        self.last_frame: np.ndarray | None = None
+        self.last_truth = None
+
+    @staticmethod
+    def available() -> bool:
+        """Whether :mod:`agvsim.sensors.render` provides ``CameraRenderer`` (no GL context is opened)."""
+        try:
+            from agvsim.sensors.render import CameraRenderer  # noqa: F401
+        except (ImportError, AttributeError):
+            return False
+        return True
+
+    def _get_renderer(self):
+        if self._renderer is None:
+            try:
+                from agvsim.sensors.render import CameraRenderer
+            except (ImportError, AttributeError) as exc:
+                raise ValueError("the 'rendered' observation source needs the camera renderer "
+                                 "(agvsim.sensors.render.CameraRenderer, issue 4), which is not available here "
+                                 f"({exc}); use --observations synthetic or geometric") from None
+            self._renderer = CameraRenderer(self.map, camera=self.camera, mount=self.vision.mount)
+        return self._renderer
+
+    def set_exposure(self, factor: float) -> None:
+        """Render the following frames with ``exposure=factor`` (> 0)."""
+        self.conditions = {**self.conditions, "exposure": check_number("exposure", factor, low=0.0, low_open=True)}
+
+    def observe(self, true_pose, rng: np.random.Generator,
+                command: tuple[float, float] = (0.0, 0.0)) -> list[SimObservation]:
+        from agvsim.sensors.render import RenderConditions
+        from localizer import detect_targets
+        from localizer.target import TargetSpec
+
+        renderer = self._get_renderer()
+        cond = RenderConditions(**{**self.conditions, "velocity": (float(command[0]), float(command[1]))})
+        image, truth = renderer.render(tuple(float(v) for v in true_pose), cond, rng)
+        self.last_frame = image
+        self.last_truth = truth
+        # candidates for labelling detections with the target really seen (evaluation only): the
+        # renderer's visible targets, plus facing, unoccluded ones whose printed margin is cut by
+        # the image border (the localizer still finds their bars there)
+        half = self.vision.view_limits().half_fov + 0.05
+        visible = []
+        for i, t in enumerate(truth.targets):
+            partly = (t.facing and t.occluded_fraction < 0.5 and math.isfinite(t.distance) and t.distance > 0
+                      and abs(t.beta) <= half)
+            if t.visible or partly:
+                visible.append((i, TargetPose(t.distance, t.beta, t.alpha, t.height if math.isfinite(t.height) else 0.0)))
+        spec = self.map.targets[0].spec if self.map.targets else TargetSpec()
+        out = []
+        for o in detect_targets(image, self.camera, spec, method=self.vision.detector):
+            out.append(SimObservation(o.distance, o.beta, o.alpha, np.asarray(o.covariance), o.polarity,
+                                      match_truth(o, visible, self.map)))
+        return out
