@@ -3,8 +3,16 @@
 Import-light on purpose: ``import agvsim`` loads neither numpy, pymunk nor
 OpenGL. The names below are imported on first use.
 
-    >>> import agvsim
+    >>> import numpy as np, agvsim
     >>> floor = agvsim.load_map("plant_floor")
+    >>> config = agvsim.MissionConfig(sim=agvsim.SimConfig(odometry=agvsim.OdometryErrorModel.preset("worn")),
+    ...                               vision=False, steer_on="truth", laps=2)
+    >>> log = agvsim.run_mission(floor, None, np.random.default_rng(0), config)
+
+Layers (data flows one way; ``ARCHITECTURE.md``): :mod:`agvsim.world` (maps) →
+:mod:`agvsim.vehicle` (physics, encoders, odometry) → :mod:`agvsim.sensors`
+(observation sources, renderer) → :mod:`agvsim.loop` (closed loop, mission) →
+:mod:`agvsim.analysis` (metrics, plots) and the ``agvsim`` command.
 """
 from __future__ import annotations
 
@@ -13,19 +21,44 @@ from typing import Any
 
 #: public name -> module that defines it (imported lazily, PEP 562).
 _LAZY = {
-    "load_map": "agvsim.world.map",
+    # maps
+    "load_map": "agvsim.world.loader",
+    "shipped_maps": "agvsim.world.loader",
     "Map": "agvsim.world.map",
-    "MapError": "agvsim.world.map",
+    "MapError": "agvsim.world.loader",
+    # vehicle
+    "SimConfig": "agvsim.vehicle.simulation",
+    "Simulation": "agvsim.vehicle.simulation",
+    "OdometryErrorModel": "agvsim.vehicle.encoders",
+    "ODOMETRY_PRESETS": "agvsim.vehicle.encoders:PRESETS",
+    # sensors
+    "CameraMount": "localizer.mount",
+    "VisionConfig": "agvsim.sensors.vision",
+    "SOURCES": "agvsim.sensors.registry",
+    "make_source": "agvsim.sensors.registry",
+    "GeometricNoise": "agvsim.sensors.geometric",
+    "GeometricSource": "agvsim.sensors.geometric",
+    "SyntheticFrameSource": "agvsim.sensors.synthetic",
+    "RenderedSource": "agvsim.sensors.rendered",
+    # loop
+    "ClosedLoop": "agvsim.loop.closed_loop",
+    "LoopConfig": "agvsim.loop.closed_loop",
+    "MissionConfig": "agvsim.loop.mission",
+    "MissionLog": "agvsim.loop.log",
+    "run_mission": "agvsim.loop.mission",
+    # analysis
+    "run_metrics": "agvsim.analysis.evaluate",
 }
 
 __all__ = sorted(_LAZY)
 
 
 def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
+    target = _LAZY.get(name)
+    if target is None:
         raise AttributeError(f"module 'agvsim' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
+    module, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module), attr or name)
 
 
 def __dir__() -> list[str]:

@@ -143,6 +143,12 @@ class AGVEnv(gym.Env):
         self._steps = 0
         self._paths: dict[str, list[np.ndarray]] = {}
 
+    @property
+    def loop(self):
+        """The current episode's :class:`~agvsim.loop.closed_loop.ClosedLoop` (None before
+        :meth:`reset`): ground truth and internals for evaluation, never for the agent."""
+        return self._episode
+
     # -- Gymnasium API -------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)

@@ -12,21 +12,19 @@ import argparse
 import numpy as np
 
 import agvsim
-from agvsim.runner import drive_route
-from agvsim.vehicle.simulation import SimConfig
-from agvsim.vehicle.encoders import PRESETS, OdometryErrorModel
 
 
 def main(map_name: str = "plant_floor", laps: float = 1.0, seeds: int = 2,
-         presets: tuple[str, ...] = PRESETS) -> dict[str, float]:
+         presets: tuple[str, ...] = agvsim.ODOMETRY_PRESETS) -> dict[str, float]:
     """Mean final dead-reckoning error (m) per preset over ``seeds`` seeds."""
     floor = agvsim.load_map(map_name)
     results: dict[str, float] = {}
     for preset in presets:
-        config = SimConfig(odometry=OdometryErrorModel.preset(preset))
+        config = agvsim.MissionConfig(sim=agvsim.SimConfig(odometry=agvsim.OdometryErrorModel.preset(preset)),
+                                      laps=laps, vision=False, steer_on="truth")
         finals = []
         for seed in range(seeds):
-            log = drive_route(floor, np.random.default_rng(seed), config=config, laps=laps)
+            log = agvsim.run_mission(floor, None, np.random.default_rng(seed), config)
             finals.append(float(log.odometry_error()[-1]))
         results[preset] = float(np.mean(finals))
         print(f"{preset:>8}: {results[preset]:7.3f} m after {log.distance[-1]:6.1f} m "

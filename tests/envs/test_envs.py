@@ -31,7 +31,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
     env = gym.make("agvsim/PlantFloor-v0", localization="truth", odometry="worn", task="localize")
     obs, _ = env.reset(seed=4)
     base = env.unwrapped
-    start = base._episode.true_pose
+    start = base.loop.true_pose
     route = RoutePath.from_route(base.map, "default")
     pursuit = PurePursuit(route, FollowerParams(), laps=10)
     pursuit.progress = route.project(start[:2], 0.0, window=1e9)
@@ -129,7 +129,7 @@ def test_actions_are_clipped_and_nan_is_an_error():
     for _ in range(40):
         _, _, _, _, info = env.step(np.array([5.0, 0.0]))
     # 5x the limit is clipped to the vehicle's top speed (1.5 m/s)
-    speed = np.mean(env._episode.sim.vehicle.velocity[0])
+    speed = np.mean(env.loop.sim.vehicle.velocity[0])
     assert speed == pytest.approx(1.5, abs=1e-6)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([np.nan, 0.0]))
@@ -138,9 +138,9 @@ def test_actions_are_clipped_and_nan_is_an_error():
 def test_goal_reward_is_progress_on_the_true_pose():
     env = gym.make("agvsim/Corridor-v0", **FAST, time_cost=0.0).unwrapped
     env.reset(seed=3)
-    before = env._goal_distance()
+    before = env.task.goal_distance(env.loop)
     _, reward, _, _, _ = env.step(np.array([0.5, 0.0]))
-    assert reward == pytest.approx(before - env._goal_distance(), abs=1e-12)
+    assert reward == pytest.approx(before - env.task.goal_distance(env.loop), abs=1e-12)
 
 
 def test_truth_mode_observes_the_true_pose_and_odometry_does_not():

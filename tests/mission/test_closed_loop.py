@@ -9,9 +9,9 @@ import pytest
 
 from agvsim.analysis.evaluate import FLOORS, run_metrics
 from agvsim.loop.mission import MissionConfig, run_mission
-from agvsim.sensors.observe import GeometricNoise, GeometricSource, RenderedSource, VisionConfig, mount_2d, targets_from_map
-from agvsim.sensors.render.mount import CameraMount
+from agvsim.sensors import GeometricNoise, GeometricSource, RenderedSource, SimObservation, VisionConfig, targets_from_map
 from agvsim.world import load_map
+from localizer.mount import CameraMount
 
 # The corridor's targets hang at 0.8-1.6 m on both walls about 1 m from the lanes; a level 16 mm
 # camera sees them all only from farther away: on the vehicle's left flank looking 30° right of
@@ -93,8 +93,9 @@ def test_latency_and_rate_are_honoured(corridor):
 
 
 def test_mount_and_targets_are_plain_data(corridor):
-    m2 = mount_2d(CORRIDOR_MOUNT)
-    assert (m2.x, m2.y, m2.yaw) == (0.4, 0.3, -math.radians(30.0))
+    vision = VisionConfig().for_map(corridor)
+    assert vision.mount == corridor.camera_mount  # the map's recommended mount when none is given
+    assert VisionConfig(mount=CORRIDOR_MOUNT).for_map(corridor).mount is CORRIDOR_MOUNT
     tm = targets_from_map(corridor)
     assert len(tm) == len(corridor.targets)
     assert tm.ids[0] == corridor.targets[0].id
@@ -145,7 +146,6 @@ def test_short_rendered_loop(corridor):
 
 def test_turn_blur_noise_inflates_only_while_turning():
     from agvsim.loop.closed_loop import with_turn_blur as _with_turn_blur
-    from agvsim.sensors.observe import SimObservation
 
     obs = SimObservation(3.0, 0.1, 0.5, np.diag([1e-6, 1e-8, 1e-6]), "positive", "T01")
     still = _with_turn_blur(obs, 0.0, (0.01, 0.0, 0.03))

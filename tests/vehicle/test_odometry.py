@@ -51,9 +51,9 @@ def test_increments_sum_to_the_dead_reckoned_path():
     total_ds = total_dth = 0.0
     for k in range(200):
         result = sim.step(1.0, 0.3 * math.sin(k / 15))
-        total_ds += result.odometry.ds
-        total_dth += result.odometry.dtheta
-        assert result.odometry.pose == sim.odometry_pose
+        total_ds += result.ds
+        total_dth += result.dtheta
+        assert result.command == sim.config.vehicle.clip_command(1.0, 0.3 * math.sin(k / 15))
     assert total_dth == pytest.approx(sim.odometry_pose[2], abs=1e-12)
     assert total_ds == pytest.approx(sim.odometry.distance, rel=1e-12)
 
