@@ -163,6 +163,9 @@ class PurePursuit:
         dx, dy = target[0] - x, target[1] - y
         dist = math.hypot(dx, dy)
         eta = math.atan2(dy, dx) - theta
+        # the lookahead point's bearing from the heading, in (-π, π], from its direction cosines;
+        # not localizer.numeric.wrap_angle: the follower's paths (and the pinned figures) depend on
+        # this expression to the last bit
         eta = math.atan2(math.sin(eta), math.cos(eta))
         kappa = 2.0 * math.sin(eta) / max(dist, 1e-6)
         v = self._cruise
