@@ -43,6 +43,8 @@ _LAZY = {
     # loop
     "ClosedLoop": "agvsim.loop.closed_loop",
     "LoopConfig": "agvsim.loop.closed_loop",
+    "LOCALIZATION_MODES": "agvsim.loop.modes",
+    "STEER_ON": "agvsim.loop.modes",
     "MissionConfig": "agvsim.loop.mission",
     "MissionLog": "agvsim.loop.log",
     "run_mission": "agvsim.loop.mission",

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+import agvsim
+
 
 def _planner():
     path = Path(__file__).with_name("pure_pursuit_planner.py")
@@ -46,7 +48,7 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="agvsim/PlantFloor-v0")
     parser.add_argument("--episodes", type=int, default=2)
-    parser.add_argument("--odometry", default="typical", choices=("ideal", "typical", "worn"))
-    parser.add_argument("--observations", default="rendered", choices=("rendered", "synthetic", "geometric"))
+    parser.add_argument("--odometry", default="typical", choices=agvsim.ODOMETRY_PRESETS)
+    parser.add_argument("--observations", default="rendered", choices=agvsim.SOURCES)
     args = parser.parse_args()
     main(args.env, args.episodes, args.odometry, args.observations)

@@ -15,6 +15,7 @@ import argparse
 import gymnasium as gym
 import numpy as np
 
+import agvsim
 import envs  # noqa: F401  (registers the agvsim/ environments)
 from agvsim.loop.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 
@@ -62,6 +63,6 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="agvsim/Corridor-v0")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--localization", default="ekf", choices=("ekf", "odometry", "truth"))
+    parser.add_argument("--localization", default="ekf", choices=agvsim.LOCALIZATION_MODES)
     args = parser.parse_args()
     main(args.env, args.seed, localization=args.localization)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import argparse
 
 import gymnasium as gym
-import numpy as np
+
+import agvsim
 
 import envs  # noqa: F401  (registers the agvsim/ environments)
 
@@ -39,6 +40,6 @@ if __name__ == "__main__":
     parser.add_argument("--env", default="agvsim/PlantFloor-v0")
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--localization", default="ekf", choices=("ekf", "odometry", "truth"))
+    parser.add_argument("--localization", default="ekf", choices=agvsim.LOCALIZATION_MODES)
     args = parser.parse_args()
     main(args.env, args.steps, args.seed, localization=args.localization)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from agvsim.commands._output import add_json_flag, emit_json, log
+from localizer.params import METHODS
 
 
 def register(sub) -> None:
@@ -16,7 +17,7 @@ def register(sub) -> None:
                      help="thesis camera with this focal length in mm (default 16)")
     cam.add_argument("--camera", metavar="CALIB.yaml", help="OpenCV calibration file (camera_matrix, "
                      "distortion_coefficients, image_width, image_height)")
-    p.add_argument("--method", choices=("thesis", "exact"), default="exact",
+    p.add_argument("--method", choices=METHODS, default="exact",
                    help="thesis: the thesis's pipeline; exact: subpixel edges + exact pose (default)")
     p.add_argument("--bar-width", type=float, default=0.075, metavar="M",
                    help="bar width b in metres (thesis proportions H=2b, s=b/2; default 0.075)")

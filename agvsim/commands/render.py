@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from agvsim.commands._output import add_json_flag, emit_json, log
+from agvsim.commands._args import parse_mount
+from agvsim.commands._output import add_json_flag, clean_json, emit_json, log
 
 
 def _lighting(text: str):
@@ -31,10 +32,12 @@ def register(sub) -> None:
     p.add_argument("--truth", metavar="TRUTH.json",
                    help="write the camera intrinsics and every target's truth (id, visible, distance, alpha, "
                         "beta, polarity, bbox, corners) here")
-    p.add_argument("--mount", choices=("forward", "left", "right"), default="forward",
-                   help="camera looking forward, or out of the vehicle's left/right side (default forward)")
+    p.add_argument("--mount", default="forward", metavar="MOUNT",
+                   help="where the camera sits: forward, left, right (looking out of that side), map (the "
+                        "map's recommended mount) or forward=F,lateral=L,height=H,yaw=Y in m and rad "
+                        "(default forward)")
     p.add_argument("--camera-height", type=float, default=1.2, metavar="M",
-                   help="lens height above the floor, m (default 1.2)")
+                   help="lens height above the floor for forward/left/right, m (default 1.2)")
     p.add_argument("--exposure", type=float, default=1.0, help="relative exposure (default 1)")
     p.add_argument("--defocus", type=float, default=0.0, metavar="PX", help="optical blur sigma, px (default 0)")
     p.add_argument("--focus", type=float, default=None, metavar="M",
@@ -55,15 +58,14 @@ def render_frame(args: argparse.Namespace) -> dict:
     import numpy as np
 
     from localizer import Camera
-    from agvsim.sensors.render.mount import CameraMount
     from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
     from agvsim.world import load_map
 
     world_map = load_map(args.map)
-    if args.mount == "forward":
-        mount = CameraMount.forward_looking(height=args.camera_height)
-    else:
-        mount = CameraMount.side_looking(args.mount, height=args.camera_height)
+    try:
+        mount = parse_mount(args.mount, height=args.camera_height) or world_map.camera_mount
+    except argparse.ArgumentTypeError as exc:
+        raise ValueError(f"--mount: {exc}") from None
     renderer = CameraRenderer(world_map, Camera.thesis(args.lens), mount)
     conditions = RenderConditions(lighting=args.lighting, exposure=args.exposure, defocus_px=args.defocus,
                                   focus_distance=args.focus,
@@ -80,8 +82,6 @@ def render_frame(args: argparse.Namespace) -> dict:
     if args.truth:
         tpath = Path(args.truth)
         tpath.parent.mkdir(parents=True, exist_ok=True)
-        from agvsim.commands._output import clean_json
-
         tpath.write_text(json.dumps(clean_json(record), indent=2) + "\n", encoding="utf-8")
     return record
 

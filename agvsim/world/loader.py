@@ -7,9 +7,7 @@ value and what was expected. The geometric checks live in
 """
 from __future__ import annotations
 
-import math
 import os
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +17,7 @@ from agvsim.world import checks
 from agvsim.world import fields as f
 from agvsim.world import geometry as geo
 from agvsim.world.fields import MapError
+from agvsim.world.files import MAP_SUFFIXES, maps_dir, resolve_map_path, shipped_maps
 from agvsim.world.map import DEFAULT_SURFACE, DEFAULT_WALL_HEIGHT, LightingZone, Map, MapTarget, Obstacle, Station, Wall
 from localizer.mount import CameraMount
 from localizer.target import POLARITIES, TargetSpec
@@ -27,58 +26,6 @@ __all__ = ["MAP_SUFFIXES", "MapError", "load_map", "map_from_dict", "maps_dir", 
 
 #: Target sides: "left"/"right" of the wall's direction of travel (first point -> last).
 SIDES: tuple[str, ...] = ("left", "right")
-MAP_SUFFIXES: tuple[str, ...] = (".yaml", ".yml")
-
-
-# ====================================================================== files
-
-def maps_dir() -> Path:
-    """The folder of shipped maps: ``$AGVSIM_MAPS_DIR`` if set, else the repo's
-    ``maps/`` (editable install), else ``<prefix>/share/agvsim/maps`` (wheel)."""
-    override = os.environ.get("AGVSIM_MAPS_DIR")
-    if override:
-        return Path(override)
-    repo = Path(__file__).resolve().parents[2] / "maps"
-    if repo.is_dir():
-        return repo
-    # a non-editable install ships the maps as data files under the prefix
-    return Path(sys.prefix) / "share" / "agvsim" / "maps"
-
-
-def shipped_maps() -> list[str]:
-    """Names of the maps in :func:`maps_dir`, sorted."""
-    folder = maps_dir()
-    if not folder.is_dir():
-        return []
-    return sorted(p.stem for p in folder.iterdir() if p.suffix in MAP_SUFFIXES and p.is_file())
-
-
-def resolve_map_path(name_or_path: str | os.PathLike) -> Path:
-    """A shipped map name (``"corridor"``) or a path -> the file's path.
-
-    Anything with a directory part or a ``.yaml``/``.yml`` suffix is a path.
-
-    Raises:
-        FileNotFoundError: no such file or shipped map.
-    """
-    text = os.fspath(name_or_path)
-    looks_like_path = (isinstance(name_or_path, os.PathLike) or os.sep in text or "/" in text
-                       or text.endswith(MAP_SUFFIXES))
-    if looks_like_path:
-        path = Path(text)
-        if path.is_file():
-            return path
-        shipped = maps_dir() / path.name
-        if path.name == text and shipped.is_file():  # "corridor.yaml" from any directory
-            return shipped
-        raise FileNotFoundError(f"no map file {text!r}")
-    for suffix in MAP_SUFFIXES:
-        candidate = maps_dir() / f"{text}{suffix}"
-        if candidate.is_file():
-            return candidate
-    shipped = ", ".join(shipped_maps()) or "none found"
-    raise FileNotFoundError(
-        f"no shipped map {text!r} in {maps_dir()} (shipped: {shipped}; or give a path to a .yaml file)")
 
 
 def load_map(name_or_path: str | os.PathLike) -> Map:
