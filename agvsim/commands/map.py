@@ -2,14 +2,19 @@
 
     agvsim map list [--json]
     agvsim map check PATH_OR_NAME [--json]
+    agvsim map mounts PATH_OR_NAME [--route R] [--step M] [--top N] [--json]
 
 ``check`` validates the map and prints its counts, bounds, routes and
 whether the default route sees every target; a bad map prints the error
-(file, field, value, expectation) and exits with status 2.
+(file, field, value, expectation) and exits with status 2. ``mounts`` scans
+camera mounts (yaw -90..90° in 10° steps, lens 0.3 m left, centred or 0.3 m
+right) along a route and ranks them by the longest stretch with no target in
+view (:mod:`agvsim.analysis.mount_scan`), beside the map's recommended mount.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Any
 
@@ -36,6 +41,18 @@ def register(sub) -> None:
     p_check.add_argument("map", metavar="PATH_OR_NAME", help="shipped map name or path to a .yaml file")
     add_json_flag(p_check)
     p_check.set_defaults(func=run_check)
+
+    p_mounts = map_sub.add_parser(
+        "mounts", help="rank camera mounts by how well they see the targets along a route",
+        description="Scan camera mounts along a route and rank them by the longest stretch with no target "
+                    "in view, then by the share of the route with one; the map's recommended mount beside.")
+    p_mounts.add_argument("map", metavar="PATH_OR_NAME", help="shipped map name or path to a .yaml file")
+    p_mounts.add_argument("--route", default="default", help="route name (default: %(default)s)")
+    p_mounts.add_argument("--step", type=float, default=0.25, metavar="M",
+                          help="sample spacing along the route, m (default: %(default)s)")
+    p_mounts.add_argument("--top", type=int, default=8, help="mounts listed (default: %(default)s)")
+    add_json_flag(p_mounts)
+    p_mounts.set_defaults(func=run_mounts)
 
 
 # ---------------------------------------------------------------- list
@@ -125,6 +142,9 @@ def format_summary(s: dict[str, Any]) -> str:
         f"  targets    {t['total']} ({t['positive']} positive, {t['negative']} negative)",
         f"  lighting   default {s['lighting']['default']:g}; zones: " +
         (", ".join(f"{k} {v:g}" for k, v in s["lighting"]["zones"].items()) or "none"),
+        f"  camera     forward {s['camera_mount']['forward']:g} m, lateral {s['camera_mount']['lateral']:g} m, "
+        f"height {s['camera_mount']['height']:g} m, yaw {math.degrees(s['camera_mount']['yaw']):.0f} deg "
+        "(recommended mount)",
         f"  routes     {len(s['routes'])}",
     ]
     for name, r in s["routes"].items():
@@ -135,3 +155,35 @@ def format_summary(s: dict[str, Any]) -> str:
         unseen = f"; unseen: {', '.join(sight['unseen'])}" if sight["unseen"] else ""
         lines.append(f"  default route sees {sight['seen']} of {t['total']} targets{unseen}")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- mounts
+
+def run_mounts(args: argparse.Namespace) -> int:
+    import math
+
+    from agvsim.analysis.mount_scan import candidate_mounts, scan_mounts
+    from agvsim.world import MapError, load_map
+    from localizer.numeric import check_number
+
+    check_number("--top", args.top, low=1, integer=True)
+    try:
+        world = load_map(args.map)
+    except (MapError, FileNotFoundError) as exc:
+        print(f"agvsim map mounts: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_MAP
+    rec = world.camera_mount
+    yaws = [math.radians(d) for d in range(-90, 91, 10)]
+    ranked = scan_mounts(world, candidate_mounts(yaws, (-0.3, 0.0, 0.3), rec.forward, rec.height),
+                         route=args.route, step=args.step)
+    current = scan_mounts(world, [rec], route=args.route, step=args.step)[0]
+    if args.json:
+        emit_json({"map": world.name, "route": args.route, "step_m": args.step,
+                   "recommended": current.to_dict(), "ranked": [r.to_dict() for r in ranked[:args.top]]})
+        return 0
+    print(f"{world.name}, route {args.route!r}: camera mounts by the longest stretch with no target in view")
+    print(f"{'':13}{'yaw (deg)':>10}{'lateral (m)':>12}{'in view':>9}{'longest gap (m)':>17}{'targets':>9}")
+    for label, r in [("recommended", current)] + [(f"#{k + 1}", r) for k, r in enumerate(ranked[:args.top])]:
+        print(f"{label:13}{math.degrees(r.mount.yaw):10.0f}{r.mount.lateral:12.2f}{100 * r.coverage:8.0f}%"
+              f"{r.longest_gap:17.1f}{r.targets_seen:9d}")
+    return 0

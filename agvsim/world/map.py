@@ -281,6 +281,8 @@ class Map:
             "targets": {"total": len(self.targets), **polarity},
             "lighting": {"default": self.lighting_default,
                          "zones": {z.id: z.level for z in self.lighting_zones}},
+            "camera_mount": {"forward": self.camera_mount.forward, "lateral": self.camera_mount.lateral,
+                             "height": self.camera_mount.height, "yaw": self.camera_mount.yaw},
         }
 
 

@@ -13,11 +13,9 @@ from agvsim.sensors import GeometricNoise, GeometricSource, RenderedSource, SimO
 from agvsim.world import load_map
 from localizer.mount import CameraMount
 
-# The corridor's targets hang at 0.8-1.6 m on both walls about 1 m from the lanes; a level 16 mm
-# camera sees them all only from farther away: on the vehicle's left flank looking 30° right of
-# the heading (the default mount is chosen for plant_floor's wider ring road).
-CORRIDOR_MOUNT = CameraMount(forward=0.4, lateral=0.3, height=1.2, yaw=-math.radians(30.0))
-CORRIDOR_VISION = VisionConfig(mount=CORRIDOR_MOUNT)
+# The corridor's own recommended mount (maps/corridor.yaml: right flank, looking 30° left).
+CORRIDOR_VISION = VisionConfig()
+OTHER_MOUNT = CameraMount(forward=0.4, lateral=0.3, height=1.2, yaw=-math.radians(30.0))
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +93,7 @@ def test_latency_and_rate_are_honoured(corridor):
 def test_mount_and_targets_are_plain_data(corridor):
     vision = VisionConfig().for_map(corridor)
     assert vision.mount == corridor.camera_mount  # the map's recommended mount when none is given
-    assert VisionConfig(mount=CORRIDOR_MOUNT).for_map(corridor).mount is CORRIDOR_MOUNT
+    assert VisionConfig(mount=OTHER_MOUNT).for_map(corridor).mount is OTHER_MOUNT
     tm = targets_from_map(corridor)
     assert len(tm) == len(corridor.targets)
     assert tm.ids[0] == corridor.targets[0].id
