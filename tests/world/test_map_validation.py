@@ -409,3 +409,40 @@ def test_defaults_fill_in_and_are_checked_where_written(tmp_path):
     assert error_for(tmp_path, data).path == "defaults.wall.thickness"
     data["defaults"] = {"wall": {"points": [[0, 0], [1, 0]]}}
     assert error_for(tmp_path, data).path == "defaults.wall.points"
+
+
+# ---------------------------------------------------------------- camera_mount
+
+def _with_mount(tmp_path, mount_yaml: str):
+    import yaml
+
+    from agvsim.world import maps_dir
+
+    data = yaml.safe_load((maps_dir() / "corridor.yaml").read_text())
+    data.pop("camera_mount", None)
+    path = tmp_path / "m.yaml"
+    text = yaml.safe_dump(data)
+    if mount_yaml:
+        text += "camera_mount: " + mount_yaml + "\n"
+    path.write_text(text)
+    return path
+
+
+def test_camera_mount_is_read_and_defaults_to_forward_looking(tmp_path):
+    from localizer.mount import CameraMount
+
+    m = load_map(_with_mount(tmp_path, "{forward: 0.1, lateral: -0.2, height: 1.0, yaw: 0.5}"))
+    assert m.camera_mount == CameraMount(forward=0.1, lateral=-0.2, height=1.0, yaw=0.5)
+    assert load_map(_with_mount(tmp_path, "")).camera_mount == CameraMount()
+
+
+@pytest.mark.parametrize("text, field, what", [
+    ("{forward: 0.1, lateral: 0, height: 1.0}", "camera_mount.yaw", "missing required key"),
+    ("{forward: 0.1, lateral: 0, height: -1.0, yaw: 0}", "camera_mount.height", "must be positive"),
+    ("{forward: 0.1, lateral: 0, height: 1.0, yaw: 0, heigth: 2}", "camera_mount.heigth", "unknown key"),
+    ("[0.4, 0, 1.2, 0]", "camera_mount", "wrong type"),
+])
+def test_bad_camera_mount_names_the_field(tmp_path, text, field, what):
+    with pytest.raises(MapError) as err:
+        load_map(_with_mount(tmp_path, text))
+    assert field in str(err.value) and what in str(err.value)
