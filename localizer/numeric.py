@@ -60,20 +60,20 @@ def check_number(where: str, value, *, low: float | None = None, high: float | N
     Raises:
         ValueError: ``"<where> must be a finite number > 0 (Hz), got -1.0"``.
     """
-    kind = "a whole number" if integer else "a finite number"
-    bounds = _describe(low, high, low_open, high_open)
-    expected = kind + (f" {bounds}" if bounds else "") + (f" ({unit})" if unit else "")
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{where} must be {expected}, got {value!r}")
-    x = float(value)
-    ok = math.isfinite(x)
-    if ok and integer:
-        ok = x == round(x)
-    if ok and low is not None:
-        ok = x > low if low_open else x >= low
-    if ok and high is not None:
-        ok = x < high if high_open else x <= high
-    if not ok:
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Real)
+    if ok:
+        x = float(value)
+        ok = math.isfinite(x)
+        if ok and integer:
+            ok = x == round(x)
+        if ok and low is not None:
+            ok = x > low if low_open else x >= low
+        if ok and high is not None:
+            ok = x < high if high_open else x <= high
+    if not ok:  # the message is built only for the error
+        kind = "a whole number" if integer else "a finite number"
+        bounds = _describe(low, high, low_open, high_open)
+        expected = kind + (f" {bounds}" if bounds else "") + (f" ({unit})" if unit else "")
         raise ValueError(f"{where} must be {expected}, got {value!r}")
     return int(round(x)) if integer else x
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 
+from localizer.numeric import check_number
 from agvsim.vehicle.encoders import PRESETS
 
 
@@ -30,8 +31,8 @@ def run(args) -> dict:
     from agvsim.vehicle.encoders import OdometryErrorModel
     from agvsim.world import load_map
 
-    if args.repeats < 1 or not math.isfinite(args.laps) or args.laps <= 0:
-        raise ValueError("--repeats must be >= 1 and --laps positive")
+    check_number("--repeats", args.repeats, low=1, integer=True)
+    check_number("--laps", args.laps, low=0.0, low_open=True)
     world_map = load_map(args.map)
     config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))
     recorded = run_mission(world_map, None, np.random.default_rng(args.seed),

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from agvsim.commands._args import add_mount_flag
+from localizer.numeric import check_number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
@@ -91,8 +92,7 @@ def run(args) -> int:
     from agvsim.world import load_map
 
     world_map = load_map(args.map)
-    if not math.isfinite(args.laps) or args.laps <= 0:
-        raise ValueError(f"--laps must be a positive number, got {args.laps}")
+    check_number("--laps", args.laps, low=0.0, low_open=True)
     path = RoutePath.from_route(world_map, args.route)
     total = path.length * (args.laps if path.loop else 1.0)
     config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))

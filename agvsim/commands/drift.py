@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from agvsim.commands._args import add_mount_flag
+from localizer.numeric import check_number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
@@ -144,12 +145,9 @@ def run(args) -> int:
     from agvsim.sensors.rendered import RenderedSource
     from agvsim.world import load_map
 
-    if args.seeds < 1:
-        raise ValueError(f"--seeds must be >= 1, got {args.seeds}")
-    if not (math.isfinite(args.distance) and args.distance > 0):
-        raise ValueError(f"--distance must be a positive number of metres, got {args.distance}")
-    if not (math.isfinite(args.camera_rate) and args.camera_rate > 0):
-        raise ValueError(f"--camera-rate must be > 0 Hz, got {args.camera_rate}")
+    check_number("--seeds", args.seeds, low=1, integer=True)
+    check_number("--distance", args.distance, low=0.0, low_open=True, unit="m")
+    check_number("--camera-rate", args.camera_rate, low=0.0, low_open=True, unit="Hz")
     if args.drop_targets == 1 or args.drop_targets < 0:
         raise ValueError(f"--drop-targets must be 0 (none) or >= 2, got {args.drop_targets}")
     if args.false_rate and args.observations != "geometric":

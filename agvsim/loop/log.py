@@ -81,7 +81,7 @@ def frame_record(fused) -> FrameRecord:
     for k, o in enumerate(fused.observations):
         a = assoc.get(k)
         recs.append(ObservationRecord(float(o.distance), float(o.beta), float(o.alpha), str(o.polarity),
-                                      getattr(o, "truth_id", None), a.status if a else "lost",
+                                      o.truth_id, a.status if a else "lost",
                                       a.target_id if a else "", float(a.d2) if a else math.inf))
     return FrameRecord(fused.capture_time, fused.fuse_time, fused.step, tuple(recs), res.accepted, res.nis,
                        fused.observe_ms, fused.filter_ms, res.relocalized)

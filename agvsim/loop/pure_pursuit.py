@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 
 @dataclass(frozen=True)
 class FollowerParams:
@@ -34,8 +36,7 @@ class FollowerParams:
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
-            if not math.isfinite(value) or value <= 0:
-                raise ValueError(f"FollowerParams.{name} must be positive and finite, got {value!r}")
+            check_number(f"FollowerParams.{name}", value, low=0.0, low_open=True)
 
 
 class RoutePath:

@@ -14,6 +14,8 @@ from +x (rad); forward speed v (m/s) along the heading; yaw rate ω (rad/s).
 """
 from __future__ import annotations
 
+from localizer.numeric import check_number
+
 import math
 from dataclasses import dataclass
 
@@ -41,8 +43,7 @@ class VehicleParams:
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
-            if not math.isfinite(value) or value <= 0:
-                raise ValueError(f"VehicleParams.{name} must be a positive finite number, got {value!r}")
+            check_number(f"VehicleParams.{name}", value, low=0.0, low_open=True)
         if self.track_width >= self.width + 0.2:
             raise ValueError(f"VehicleParams.track_width ({self.track_width} m) must fit the chassis width ({self.width} m)")
 
@@ -78,10 +79,7 @@ class DiffDriveVehicle:
         self.params = params
         self.space = space
         self.contacts = contacts
-        x, y, theta = (float(p) for p in pose)
-        for name, value in (("x", x), ("y", y), ("theta", theta)):
-            if not math.isfinite(value):
-                raise ValueError(f"initial pose {name} must be finite, got {value!r}")
+        x, y, theta = (check_number(f"initial pose {name}", float(p)) for name, p in zip("xyθ", pose))
         moment = pymunk.moment_for_box(params.mass, (params.length, params.width))
         self.body = pymunk.Body(params.mass, moment)
         self.body.position = (x, y)

@@ -109,8 +109,9 @@ class Simulation:
 
     def step(self, v: float, omega: float) -> StepResult:
         """Drive with the command (v m/s, ω rad/s) for one control step."""
-        if not (math.isfinite(v) and math.isfinite(omega)):
-            raise ValueError(f"command must be finite, got v={v!r}, omega={omega!r}")
+        if not (math.isfinite(v) and math.isfinite(omega)):  # the hot path stays two float checks
+            check_number("command v", v, unit="m/s")
+            check_number("command omega", omega, unit="rad/s")
         dt = self.config.physics_dt
         vehicle = self.vehicle
         body = vehicle.body

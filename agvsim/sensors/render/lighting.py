@@ -15,10 +15,11 @@ here, per pixel, from the depth buffer (deferred shading, all linear):
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from localizer.numeric import check_number
 
 #: Named lighting levels for ``RenderConditions.lighting`` / ``agvsim render --lighting``
 #: (relative illumination; 2.8 saturates the white of a target exposed for normal light,
@@ -50,10 +51,7 @@ def lighting_level(value) -> float | None:
             raise ValueError(f"unknown lighting {value!r}; expected one of "
                              f"{', '.join(LIGHTING_LEVELS)}, 'map' or a positive number")
         return LIGHTING_LEVELS[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(value)) or float(value) <= 0:
-        raise ValueError(f"lighting level must be a finite number > 0, got {value!r}")
-    return float(value)
+    return check_number("lighting level", value, low=0.0, low_open=True)
 
 
 @dataclass(frozen=True, eq=False)

@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 from agvsim.sensors.render.mount import CameraMount
 
 
@@ -17,11 +19,9 @@ def camera_pose_facing(target, distance: float, alpha: float, beta: float = 0.0)
     ``(sin α, 0, cos α)``; the map normal faces the camera, so the heading is the
     direction of ``-normal`` turned by ``alpha`` (CCW is to the camera's left).
     """
-    for name, v in (("distance", distance), ("alpha", alpha), ("beta", beta)):
-        if not math.isfinite(float(v)):
-            raise ValueError(f"{name} must be finite, got {v!r}")
-    if distance <= 0:
-        raise ValueError(f"distance must be > 0 (m), got {distance!r}")
+    check_number("alpha", alpha, unit="rad")
+    check_number("beta", beta, unit="rad")
+    check_number("distance", distance, low=0.0, low_open=True, unit="m")
     psi = math.atan2(-float(target.normal[1]), -float(target.normal[0]))
     heading = psi + alpha
     bearing = heading - beta  # map direction from the lens to the target centre

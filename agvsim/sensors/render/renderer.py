@@ -33,6 +33,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 from localizer.camera import Camera
 from agvsim.sensors.render.gl import GLContext
 from agvsim.sensors.render.lighting import Illumination, lighting_level
@@ -47,13 +49,7 @@ SHADING_STRIDE = 2  # px, irradiance is computed on every 2nd pixel and interpol
 
 
 def _num(name: str, value, lo: float | None = 0.0, strict: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(value)):
-        raise ValueError(f"RenderConditions.{name} must be a finite number, got {value!r}")
-    value = float(value)
-    if lo is not None and (value < lo or (strict and value == lo)):
-        raise ValueError(f"RenderConditions.{name} must be {'>' if strict else '>='} {lo}, got {value!r}")
-    return value
+    return check_number(f"RenderConditions.{name}", value, low=lo, low_open=strict)
 
 
 @dataclass(frozen=True)

@@ -19,14 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 from localizer.camera import Camera
 
 
 def _nonneg(owner: str, name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(float(value)) or float(value) < 0:
-        raise ValueError(f"{owner}.{name} must be a finite number >= 0, got {value!r}")
-    return float(value)
+    return check_number(f"{owner}.{name}", value, low=0.0)
 
 
 @dataclass(frozen=True)
@@ -48,8 +47,8 @@ class SensorModel:
     def __post_init__(self) -> None:
         for name in ("gain", "flare", "full_well", "read_noise"):
             object.__setattr__(self, name, _nonneg("SensorModel", name, getattr(self, name)))
-        if self.gain <= 0 or self.full_well <= 0:
-            raise ValueError("SensorModel.gain and full_well must be > 0")
+        check_number("SensorModel.gain", self.gain, low=0.0, low_open=True)
+        check_number("SensorModel.full_well", self.full_well, low=0.0, low_open=True)
 
 
 def motion_blur(radiance: np.ndarray, depth: np.ndarray, camera: Camera, twist_cam: tuple[np.ndarray, np.ndarray],
