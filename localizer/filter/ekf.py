@@ -71,9 +71,8 @@ class FilterConfig:
 
     def __post_init__(self) -> None:
         check_numbers("FilterConfig.measurement_floor", self.measurement_floor, 3, low=0.0)
-        check_number("FilterConfig.lost_position_sigma", self.lost_position_sigma, low=0.0, low_open=True, unit="m")
-        check_number("FilterConfig.lost_heading_sigma", self.lost_heading_sigma, low=0.0, low_open=True,
-                     unit="rad")
+        for name, unit in (("lost_position_sigma", "m"), ("lost_heading_sigma", "rad")):
+            check_number(f"FilterConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
         check_number("FilterConfig.lost_rejected_frames", self.lost_rejected_frames, low=1, integer=True)
 
 
