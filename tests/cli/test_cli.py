@@ -25,6 +25,8 @@ def test_every_subcommand_has_help(argv, capsys):
     assert "usage:" in capsys.readouterr().out
 
 
+@pytest.mark.render  # the demo saves a rendered camera strip
+@pytest.mark.slow
 def test_demo_json_reports_drift_and_writes_pictures(tmp_path, capsys):
     code = main(["demo", "--json", "--no-progress", "--out", str(tmp_path), "--seed", "3", "--frames", "2",
                  "--observations", "geometric"])
