@@ -9,6 +9,8 @@ its duration is reported separately). Two timings of the 512 x 480 frames:
 ``speed`` runs each contender ``--repeats`` times in a row on a frame (warm caches);
 ``speed_interleaved`` runs the contenders in turn, call by call, so each call finds the
 caches as the others left them, as in a pipeline that does other work between frames.
+``blank_frames``: ms per call on the all-black and all-white frames, where there is nothing
+to find and the localizer must give up at once (floor 5 ms; formerly asserted by a test).
 """
 from __future__ import annotations
 
@@ -198,6 +200,7 @@ def _run(args) -> dict:
                                   "localizer_exact_ms": _time(lambda f: detect_targets(f, cam), fr, args.repeats)})
     result["accuracy"] = accuracy(args.samples, rng)
     result["false_positives"] = false_positives(rng)
+    result["blank_frames"] = blank_frames(args.repeats)
     return result
 
 
@@ -285,6 +288,24 @@ def false_positives(rng) -> dict:
     return res
 
 
+def blank_frames(repeats: int) -> dict:
+    """Median ms per call of the default localizer on the all-black and all-white 512 x 480 frames.
+
+    Uses its own random generator (the same frames as ``tests/localizer/test_false_positives.py``),
+    so the figures of the other sections do not depend on it."""
+    import numpy as np
+
+    from localizer import Camera, detect_targets
+    from localizer.synthetic import adversarial_frames
+
+    cam = Camera.thesis(16.0)
+    frames = adversarial_frames(cam, np.random.default_rng(4))
+    out = {f"{name}_ms": _time(lambda f: detect_targets(f, cam), [frames[name]], max(repeats, 20))
+           for name in ("black", "white")}
+    out["floor_ms"] = 5.0
+    return out
+
+
 def format_table(r: dict) -> str:
     s = r["speed"]
     lines = [f"machine: {r['machine'].get('cpu_model')} ({r['machine'].get('cpu_count')} cpus), python "
@@ -316,4 +337,8 @@ def format_table(r: dict) -> str:
         if "by_lighting" in a:
             lines.append(f"    by lighting: {a['by_lighting']}")
     lines.append(f"false detections on target-free frames: {r['false_positives']}")
+    b = r.get("blank_frames")
+    if b:
+        lines.append(f"blank frames (nothing to find), ms/call: black {b['black_ms']:.3f}, white {b['white_ms']:.3f} "
+                     f"(floor {b['floor_ms']:.0f} ms)")
     return "\n".join(lines)

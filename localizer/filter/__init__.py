@@ -15,15 +15,18 @@ from localizer.filter.ekf import FilterConfig, FrameResult, PoseEKF
 from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, pose_from_measurement,
                                           pose_from_measurement_jacobian, predict_all,
-                                          predict_measurement, wrap_angle)
+                                          predict_measurement)
 from localizer.mount import CameraMount
 from localizer.filter.motion import OdometryAccumulator, OdometryNoise, arc_motion, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
+from localizer.filter.update import PoseKF, nis, predict_pose, update_pose
+from localizer.numeric import wrap_angle
 
 __all__ = [
     "ACCEPTED", "AMBIGUOUS", "Association", "CameraMount", "DUPLICATE", "FilterConfig", "FrameResult",
     "GATED", "GateConfig", "Hypothesis", "Measurement", "NO_CANDIDATE", "OdometryAccumulator",
-    "OdometryNoise", "PoseEKF", "RelocalizeConfig", "Relocalizer", "TargetMap", "ViewLimits", "arc_motion",
-    "associate", "compose", "compose_jacobians", "innovation", "measurement_jacobian", "pose_from_measurement",
-    "pose_from_measurement_jacobian", "predict_all", "predict_measurement", "wrap_angle",
+    "OdometryNoise", "PoseEKF", "PoseKF", "RelocalizeConfig", "Relocalizer", "TargetMap", "ViewLimits",
+    "arc_motion", "associate", "compose", "compose_jacobians", "innovation", "measurement_jacobian", "nis",
+    "pose_from_measurement", "pose_from_measurement_jacobian", "predict_all", "predict_measurement",
+    "predict_pose", "update_pose", "wrap_angle",
 ]

@@ -22,9 +22,10 @@ from typing import Sequence
 import numpy as np
 from scipy.stats import chi2
 
-from localizer.mount import CameraMount
 from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
-                                          measurement_jacobian, predict_all, wrap_angle)
+                                          measurement_jacobian, predict_all)
+from localizer.mount import CameraMount
+from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["ACCEPTED", "AMBIGUOUS", "Association", "DUPLICATE", "GATED", "GateConfig", "NO_CANDIDATE",
            "associate", "innovation"]
@@ -54,10 +55,9 @@ class GateConfig:
     view: ViewLimits = ViewLimits()
 
     def __post_init__(self) -> None:
-        if not (0.0 < self.gate_probability < 1.0):
-            raise ValueError(f"GateConfig.gate_probability must be in (0, 1), got {self.gate_probability!r}")
-        if not (self.ambiguity_margin >= 0 and math.isfinite(self.ambiguity_margin)):
-            raise ValueError(f"GateConfig.ambiguity_margin must be >= 0, got {self.ambiguity_margin!r}")
+        check_number("GateConfig.gate_probability", self.gate_probability, low=0.0, high=1.0, low_open=True,
+                     high_open=True)
+        check_number("GateConfig.ambiguity_margin", self.ambiguity_margin, low=0.0, unit="D²")
 
     @property
     def gate(self) -> float:

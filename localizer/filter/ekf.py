@@ -16,7 +16,10 @@ fused in capture order.
 Update: each accepted observation (:mod:`localizer.filter.association`) is a
 filterpy ``update(z, HJacobian, Hx, R, residual)`` with angle-wrapping
 residual; filterpy 2.0's EKF update is in Joseph form,
-``P = (I - K H) P (I - K H)ᵀ + K R Kᵀ``.
+``P = (I - K H) P (I - K H)ᵀ + K R Kᵀ``. Predict and update go through
+:mod:`localizer.filter.update`, the path the re-localization hypotheses take
+too; the NIS of each update is read from filterpy's innovation ``y`` and its
+covariance ``S`` (:func:`~localizer.filter.update.nis`).
 
 Lost: position σ (largest eigenvalue of P_xy) above ``lost_position_sigma``,
 heading σ above ``lost_heading_sigma``, or ``lost_rejected_frames`` frames in a
@@ -27,18 +30,18 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 
+from localizer.filter.association import ACCEPTED, Association, GateConfig, associate
+from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
-from localizer.filter.association import ACCEPTED, Association, GateConfig, associate, innovation
-from localizer.filter.measurement import (Measurement, TargetMap, measurement_jacobian,
-                                          predict_measurement, wrap_angle)
 from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
+from localizer.filter.update import PoseKF, predict_pose, update_pose
+from localizer.numeric import check_number, check_numbers, wrap_angle
 
 __all__ = ["FilterConfig", "FrameResult", "PoseEKF"]
 
@@ -68,14 +71,10 @@ class FilterConfig:
     lost_rejected_frames: int = 12
 
     def __post_init__(self) -> None:
-        if len(self.measurement_floor) != 3 or not all(math.isfinite(v) and v >= 0 for v in self.measurement_floor):
-            raise ValueError(f"FilterConfig.measurement_floor must be 3 finite values >= 0, got {self.measurement_floor!r}")
-        for name in ("lost_position_sigma", "lost_heading_sigma"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"FilterConfig.{name} must be > 0, got {v!r}")
-        if self.lost_rejected_frames < 1:
-            raise ValueError(f"FilterConfig.lost_rejected_frames must be >= 1, got {self.lost_rejected_frames!r}")
+        check_numbers("FilterConfig.measurement_floor", self.measurement_floor, 3, low=0.0)
+        for name, unit in (("lost_position_sigma", "m"), ("lost_heading_sigma", "rad")):
+            check_number(f"FilterConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
+        check_number("FilterConfig.lost_rejected_frames", self.lost_rejected_frames, low=1, integer=True)
 
 
 @dataclass(frozen=True)
@@ -101,25 +100,6 @@ class FrameResult:
     hypotheses: int
 
 
-class _PoseKF(ExtendedKalmanFilter):
-    """filterpy EKF whose prediction is the pose composition x ⊕ u."""
-
-    def predict_x(self, u=0):
-        self.x = compose(self.x, u).reshape(3, 1)
-
-
-def _hx(x, pos, yaw, mount):
-    return predict_measurement(x, pos, yaw, mount).reshape(3, 1)
-
-
-def _H(x, pos, yaw, mount):
-    return measurement_jacobian(x, pos, yaw, mount)
-
-
-def _residual(a, b):
-    return innovation(a, b)
-
-
 class PoseEKF:
     """Odometry + target-observation pose filter (module docstring).
 
@@ -143,9 +123,7 @@ class PoseEKF:
         self.targets = targets
         self.mount = mount
         self.config = config
-        self.kf = _PoseKF(dim_x=3, dim_z=3)
-        self.kf.x = x0.reshape(3, 1).copy()
-        self.kf.P = 0.5 * (P0 + P0.T)
+        self.kf = PoseKF(x0, 0.5 * (P0 + P0.T))
         self.time = float(t0)  # s, time of the filter state
         self._pending: deque = deque()  # (t, ds, dθ) after self.time
         self._now = OdometryAccumulator(config.noise)
@@ -207,10 +185,7 @@ class PoseEKF:
         self._check_lost()
 
     def _predict(self, u: np.ndarray, Q: np.ndarray) -> None:
-        F, G = compose_jacobians(self.kf.x, u)
-        self.kf.F = F
-        self.kf.Q = G @ Q @ G.T
-        self.kf.predict(u=u)
+        predict_pose(self.kf, u, Q)
         self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         if self.lost:
             self.relocalizer.predict(u, Q)
@@ -253,13 +228,7 @@ class PoseEKF:
                 continue
             m = ms[a.observation]
             pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
-            # the NIS at the current (possibly already updated) state
-            H = measurement_jacobian(self.kf.x, pos, yaw, self.mount)
-            S = H @ self.kf.P @ H.T + m.R
-            nu = innovation(m.z, predict_measurement(self.kf.x, pos, yaw, self.mount))
-            nis.append(float(nu @ np.linalg.solve(S, nu)))
-            self.kf.update(m.z.reshape(3, 1), _H, _hx, R=m.R, args=(pos, yaw, self.mount),
-                           hx_args=(pos, yaw, self.mount), residual=_residual)
+            nis.append(update_pose(self.kf, m, pos, yaw, self.mount))  # NIS from filterpy's y and S
             self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         accepted = len(nis)
         # a frame counts against the filter when a target was predicted in view and none of the

@@ -60,21 +60,13 @@ from typing import Sequence
 import numpy as np
 
 from localizer.mount import CameraMount
+from localizer.numeric import check_number, wrap_angle
 
 __all__ = [
     "Measurement", "TargetMap", "ViewLimits", "measurement_jacobian",
     "pose_from_measurement", "pose_from_measurement_jacobian", "predict_measurement",
-    "predict_all", "wrap_angle",
+    "predict_all",
 ]
-
-TWO_PI = 2.0 * math.pi
-
-
-def wrap_angle(a):
-    """Wrap angle(s) (rad) to [-π, π): a float for a float, an array for an array."""
-    if isinstance(a, float):
-        return (a + math.pi) % TWO_PI - math.pi
-    return (np.asarray(a, dtype=float) + math.pi) % TWO_PI - math.pi
 
 
 @dataclass(frozen=True)
@@ -97,15 +89,14 @@ class ViewLimits:
     margin: float = math.radians(2.0)  # rad
 
     def __post_init__(self) -> None:
-        if not (0 < self.half_fov < math.pi):
-            raise ValueError(f"ViewLimits.half_fov must be in (0, π) rad, got {self.half_fov!r}")
-        if not (0 <= self.min_range < self.max_range):
-            raise ValueError(f"ViewLimits needs 0 <= min_range < max_range (m), got "
-                             f"{self.min_range!r}, {self.max_range!r}")
-        if not (0 < self.max_incidence <= math.pi / 2):
-            raise ValueError(f"ViewLimits.max_incidence must be in (0, π/2] rad, got {self.max_incidence!r}")
-        if not (self.margin >= 0 and math.isfinite(self.margin)):
-            raise ValueError(f"ViewLimits.margin must be >= 0 rad, got {self.margin!r}")
+        check_number("ViewLimits.half_fov", self.half_fov, low=0.0, high=math.pi, low_open=True, high_open=True,
+                     unit="rad")
+        check_number("ViewLimits.min_range", self.min_range, low=0.0, unit="m")
+        check_number("ViewLimits.max_range", self.max_range, low=self.min_range, low_open=True,
+                     unit="m")
+        check_number("ViewLimits.max_incidence", self.max_incidence, low=0.0, high=math.pi / 2, low_open=True,
+                     unit="rad")
+        check_number("ViewLimits.margin", self.margin, low=0.0, unit="rad")
 
 
 @dataclass(frozen=True, eq=False)

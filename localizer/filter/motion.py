@@ -46,6 +46,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from localizer.numeric import check_number
+
 __all__ = ["OdometryAccumulator", "OdometryNoise", "arc_motion", "compose", "compose_jacobians"]
 
 
@@ -74,14 +76,12 @@ class OdometryNoise:
     inflation: float = 1.0  # dimensionless
 
     def __post_init__(self) -> None:
-        for name in ("wheel_noise", "diameter_bias", "wheelbase_bias", "scale_bias"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"OdometryNoise.{name} must be finite and >= 0, got {v!r}")
-        for name in ("track_width", "correlation", "correlation_turn", "inflation"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"OdometryNoise.{name} must be finite and > 0, got {v!r}")
+        for name, unit in (("wheel_noise", "m^(1/2)"), ("diameter_bias", ""), ("wheelbase_bias", ""),
+                           ("scale_bias", "")):
+            check_number(f"OdometryNoise.{name}", getattr(self, name), low=0.0, unit=unit)
+        for name, unit in (("track_width", "m"), ("correlation", "m"), ("correlation_turn", "rad"),
+                           ("inflation", "")):
+            check_number(f"OdometryNoise.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
 
     def covariance(self, ds: float, dtheta: float) -> tuple[float, float, float]:
         """(var Δs m², cov(Δs, Δθ) m·rad, var Δθ rad²) of one increment."""

@@ -3,8 +3,10 @@ r"""Re-localization when the filter is lost.
 Every observation of a target, paired with every map target of the same
 polarity, gives a full pose (:func:`~localizer.filter.measurement.pose_from_measurement`)
 with covariance ``J R Jᵀ`` (J its Jacobian w.r.t. (d, β, α)). Each pairing is
-a *hypothesis*, a small EKF of its own, propagated by the same odometry as the
-main filter. Targets look alike, so later observations of the *same* target
+a *hypothesis*, a small EKF of its own (a filterpy EKF,
+:class:`~localizer.filter.update.PoseKF`), propagated by the same odometry as the
+main filter and updated through the same filterpy update
+(:mod:`localizer.filter.update`). Targets look alike, so later observations of the *same* target
 fit every hypothesis equally well; only a second, different target tells them
 apart. A hypothesis is therefore **confirmed** when it has matched
 ``confirm_targets`` distinct targets and no other live hypothesis has matched
@@ -15,17 +17,17 @@ right one). Hypotheses closer than ``merge_distance`` / ``merge_heading`` are me
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Sequence
+from dataclasses import dataclass
+from typing import Iterable, Sequence
 
 import numpy as np
 
+from localizer.filter.association import ACCEPTED, GateConfig, associate
+from localizer.filter.measurement import (Measurement, TargetMap, pose_from_measurement,
+                                          pose_from_measurement_jacobian)
+from localizer.filter.update import PoseKF, predict_pose, update_pose
 from localizer.mount import CameraMount
-from localizer.filter.association import ACCEPTED, GateConfig, associate, innovation
-from localizer.filter.measurement import (Measurement, TargetMap, measurement_jacobian,
-                                          pose_from_measurement, pose_from_measurement_jacobian,
-                                          predict_measurement, wrap_angle)
-from localizer.filter.motion import compose, compose_jacobians
+from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["Hypothesis", "RelocalizeConfig", "Relocalizer"]
 
@@ -51,20 +53,47 @@ class RelocalizeConfig:
     bounds: tuple[float, float, float, float] | None = None  # m
 
     def __post_init__(self) -> None:
-        if self.confirm_targets < 1 or self.max_misses < 1 or self.max_hypotheses < 1:
-            raise ValueError("RelocalizeConfig: confirm_targets, max_misses and max_hypotheses must be >= 1")
-        if not (self.merge_distance >= 0 and self.merge_heading >= 0):
-            raise ValueError("RelocalizeConfig: merge_distance and merge_heading must be >= 0")
+        for name in ("confirm_targets", "max_misses", "max_hypotheses"):
+            check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
+        check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
+        check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
 
 
-@dataclass
 class Hypothesis:
-    """One candidate pose: state x (3,), covariance P (3, 3), the targets it matched, misses."""
+    """One candidate pose, a filterpy EKF of its own (:attr:`kf`), the targets it matched, misses.
 
-    x: np.ndarray
-    P: np.ndarray
-    matched: set = field(default_factory=set)
-    misses: int = 0
+    Args:
+        x: (3,) pose (m, m, rad).
+        P: (3, 3) its covariance.
+        matched: ids of the targets it matched.
+        misses: observations it failed to match.
+    """
+
+    def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0) -> None:
+        self.kf = PoseKF(x, P)
+        self.matched = set(matched)
+        self.misses = misses
+
+    @property
+    def x(self) -> np.ndarray:
+        """(3,) pose (a view of the EKF state)."""
+        return self.kf.x.reshape(-1)
+
+    @x.setter
+    def x(self, value) -> None:
+        self.kf.x = np.asarray(value, dtype=float).reshape(3, 1).copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        """(3, 3) covariance (the EKF's)."""
+        return self.kf.P
+
+    @P.setter
+    def P(self, value) -> None:
+        self.kf.P = np.asarray(value, dtype=float).copy()
+
+    def __repr__(self) -> str:
+        return f"Hypothesis(x={self.x!r}, matched={sorted(self.matched)!r}, misses={self.misses})"
 
 
 class Relocalizer:
@@ -91,9 +120,7 @@ class Relocalizer:
     def predict(self, u: np.ndarray, Q: np.ndarray) -> None:
         """Move every hypothesis by the relative motion u (3,) with covariance Q (3, 3)."""
         for h in self.hypotheses:
-            F, G = compose_jacobians(h.x, u)
-            h.x = compose(h.x, u)
-            h.P = F @ h.P @ F.T + G @ Q @ G.T
+            predict_pose(h.kf, u, Q)
 
     def seed(self, measurements: Sequence[Measurement], prior: Hypothesis | None = None) -> int:
         """Add hypotheses from every (observation, same-polarity target) pairing; returns how many."""
@@ -147,13 +174,7 @@ class Relocalizer:
                     h.misses += 1
                     continue
                 m = measurements[a.observation]
-                pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
-                H = measurement_jacobian(h.x, pos, yaw, self.mount)
-                S = H @ h.P @ H.T + m.R
-                K = h.P @ H.T @ np.linalg.inv(S)
-                h.x = h.x + K @ innovation(m.z, predict_measurement(h.x, pos, yaw, self.mount))
-                I_KH = np.eye(3) - K @ H
-                h.P = I_KH @ h.P @ I_KH.T + K @ m.R @ K.T
+                update_pose(h.kf, m, self.targets.positions[a.target], self.targets.yaws[a.target], self.mount)
                 h.matched.add(a.target_id)
             if h.misses < self.config.max_misses:
                 alive.append(h)

@@ -25,6 +25,8 @@ def test_every_subcommand_has_help(argv, capsys):
     assert "usage:" in capsys.readouterr().out
 
 
+@pytest.mark.render  # the demo saves a rendered camera strip
+@pytest.mark.slow
 def test_demo_json_reports_drift_and_writes_pictures(tmp_path, capsys):
     code = main(["demo", "--json", "--no-progress", "--out", str(tmp_path), "--seed", "3", "--frames", "2",
                  "--observations", "geometric"])
@@ -72,7 +74,8 @@ def test_bench_sim_json(capsys):
     assert main(["bench", "sim", "--json", "--laps", "0.1", "--repeats", "1"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["physics_steps"] > 0
-    assert result["real_time_factor"] > 1.0  # faster than real time; the floor is a benchmark, not a test
+    # the speed itself (floor 500x real time) is the benchmark's figure, not a test's: only that it is reported
+    assert result["real_time_factor"] > 0 and result["floor_real_time_factor"] > 0
     assert result["peer"]["physics_steps_per_second"] > 0
     assert "cpu_count" in result["machine"]
 

@@ -57,6 +57,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
     assert errors["odometry"][0] > 0.1
 
 
+@pytest.mark.render
 def test_observe_image_returns_the_rendered_frame():
     env = gym.make("agvsim/Corridor-v0", observe_image=True, render_mode="rgb_array")
     obs, _ = env.reset(seed=1)
@@ -194,6 +195,8 @@ print("ok")
 """
 
 
+@pytest.mark.render
+@pytest.mark.slow
 def test_async_vector_env_steps():
     """Rendered EKF envs in forked workers (the default start method): the env
     the parent builds for the spaces opens no GL context, so the workers do not

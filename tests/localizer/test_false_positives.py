@@ -1,5 +1,3 @@
-import time
-
 import numpy as np
 import pytest
 
@@ -15,13 +13,11 @@ def test_adversarial_patterns_rejected(cam16, method):
         assert detect_targets(img, cam16, method=method) == [], name
 
 
-def test_black_white_noise_fast(cam16):
+def test_black_and_white_frames_find_nothing(cam16):
+    # the time per call (floor 5 ms) is a benchmark, not a test: `agvsim bench localizer`, "blank_frames"
     frames = adversarial_frames(cam16, np.random.default_rng(4))
     for name in ("black", "white"):
-        t0 = time.perf_counter()
-        for _ in range(20):
-            assert detect_targets(frames[name], cam16) == []
-        assert (time.perf_counter() - t0) / 20 < 0.005, name
+        assert detect_targets(frames[name], cam16) == [], name
 
 
 def test_real_photos_rejected(cam16):

@@ -131,6 +131,7 @@ def _renderer_works() -> bool:
     return True
 
 
+@pytest.mark.render
 @pytest.mark.skipif(not _renderer_works(), reason="camera renderer (issue 4) not available")
 def test_short_rendered_loop(corridor):
     """The first 5 m of corridor (target C01 in view) with rendered frames and the real localizer."""

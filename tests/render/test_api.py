@@ -113,6 +113,7 @@ print('fork ok', codes, img.shape)
 
 
 @pytest.mark.render
+@pytest.mark.slow
 def test_renderer_built_before_fork_renders_in_children():
     out = subprocess.run([sys.executable, "-c", _FORK_SCRIPT], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
@@ -133,6 +134,7 @@ print(h.hexdigest())
 
 
 @pytest.mark.render
+@pytest.mark.slow
 def test_same_seed_same_frame_across_processes_and_contexts(gl_context):
     """Bit-identical frames in a fresh process and in this one (its shared context has rendered
     other scenes before): no dependence on draw order, uninitialised memory or context history."""

@@ -18,6 +18,7 @@ def _agvsim(*args, timeout=180):
     return subprocess.run([sys.executable, "-m", "agvsim", *args], capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_render_cli_writes_frame_and_truth(tmp_path):
     frame, truth = tmp_path / "frame.png", tmp_path / "truth.json"
     out = _agvsim("render", "--map", "plant_floor", "--pose", "47", "4", "-1.2", "--lens", "16",
@@ -47,6 +48,7 @@ def test_render_cli_writes_frame_and_truth(tmp_path):
     assert out.returncode == 2 and "finite" in out.stderr
 
 
+@pytest.mark.slow
 def test_bench_render_json():
     out = _agvsim("bench", "render", "--frames", "2", "--json", timeout=300)
     assert out.returncode == 0, out.stderr
