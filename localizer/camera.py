@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from localizer._kernels.records import Intrinsics
+from localizer._kernels.records import Intrinsics, as_record
 from localizer.numeric import check_number
 
 #: Thesis camera (Pulnix TM-450): sensor 8.8 x 6.6 mm imaged on 512 x 480 pixels.
@@ -184,6 +184,12 @@ class Camera:
     def intrinsics(self) -> Intrinsics:
         """``(fx, fy, cx, cy)`` (px) as the compiled kernels take them (computed once)."""
         return Intrinsics(self.fx, self.fy, self.cx, self.cy)
+
+    @functools.cached_property
+    def intrinsics_record(self) -> np.ndarray:
+        """:attr:`intrinsics` as a ``(1,)`` record array, the form of the per-frame kernels'
+        arguments (computed once; do not change it)."""
+        return as_record(self.intrinsics)
 
     def scaled(self, width: int, height: int) -> "Camera":
         """The same optics imaged on ``width x height`` pixels (intrinsics scaled)."""

@@ -86,7 +86,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         A list of :class:`TargetObservation`, top to bottom, left to right.
     """
     t0 = time.perf_counter()
-    check_choice("detect_targets method", method, METHODS)
+    if method not in METHODS:
+        check_choice("detect_targets method", method, METHODS)
     if not isinstance(camera, Camera):
         raise ValueError(f"camera must be a localizer.Camera, got {type(camera).__name__}")
     if not isinstance(target, TargetSpec):

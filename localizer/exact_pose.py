@@ -6,13 +6,14 @@ Kernels: :mod:`localizer._kernels.exact_pose` (the model and the fit) and
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from localizer._kernels import measure
 from localizer._kernels.exact_pose import alpha_a14, fit
-from localizer._kernels.records import ExactSettings, FitStatus, MeasuredEdges, PoseFit
+from localizer._kernels.records import ExactSettings, FitStatus, MeasuredEdges, PoseFit, as_record
 from localizer.camera import Camera
 from localizer.edges import EdgeMeasurements
 from localizer.pose import PoseEstimate
@@ -75,13 +76,22 @@ def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sig
     and the :class:`PoseEstimate` (None when the edges do not make a target or the fit
     fails).
     """
-    r = measure.exact_measure(image, st.rows, st.bounds, st.ends, bool(st.positive), camera.intrinsics,
-                              target.constants, ExactSettings(float(sigma_floor), int(iterations),
-                                                              float(width_tolerance), float(width_slack),
-                                                              float(min_rows)))
+    r = measure.exact_measure(image, st.rows, st.bounds, st.ends, bool(st.positive), camera.intrinsics_record,
+                              target.constants_record, _settings(float(sigma_floor), int(iterations),
+                                                                 float(width_tolerance), float(width_slack),
+                                                                 float(min_rows)))
+    (found, e0, e1, e2, e3, cx1, cx2, t1, t2, b1, b2, d, beta, alpha, z, x, height, bias, a1, a2, nsols, chi2,
+     cov), = r.tolist()
     est = None
-    if r.found:
-        v = r.pose
-        est = PoseEstimate(v.distance, v.beta, v.alpha, v.z, v.x, v.height, r.cov, (v.alpha1, v.alpha2),
-                           v.n_solutions > 1, v.edge_bias, math.sqrt(v.chi2 / 3.0))  # 8 measurements, 5 unknowns
-    return r.edges, r.bar_cx, r.top, r.bottom, est
+    if found:
+        est = PoseEstimate(d, beta, alpha, z, x, height, cov, (a1, a2), nsols > 1, bias,
+                           math.sqrt(chi2 / 3.0))  # 8 measurements, 5 unknowns
+    return (e0, e1, e2, e3), (cx1, cx2), (t1, t2), (b1, b2), est
+
+
+@functools.lru_cache(maxsize=64)
+def _settings(sigma_floor: float, iterations: int, width_tolerance: float, width_slack: float,
+              min_rows: float) -> np.ndarray:
+    """The :data:`~localizer._kernels.records.EXACT_SETTINGS` record of these values (cached;
+    the caller must not change it)."""
+    return as_record(ExactSettings(sigma_floor, iterations, width_tolerance, width_slack, min_rows))

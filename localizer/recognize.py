@@ -29,11 +29,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from localizer._kernels import search
-from localizer._kernels.records import REASONS, SearchSettings
+from localizer._kernels.records import REASONS, SearchSettings, as_record
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
 from localizer.scan import run_test
 from localizer.target import TargetSpec
+
+
+#: ``DetectionStats.rejected`` keys of :data:`localizer._kernels.records.REASONS`, in order
+_REASON_KEYS = tuple(reason.name.lower() for reason in REASONS)
+assert [int(r) for r in REASONS] == list(range(1, len(REASONS) + 1))
 
 
 @dataclass(frozen=True)
@@ -87,37 +92,33 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     top to bottom, left to right.
     """
     r = search.recognize(image, search_settings(p, camera.fx, camera.fy, target.bar_width, target.bar_height))
-    c = r.counts
-    stats.rows_scanned += c.rows_scanned
-    stats.runs += c.runs
-    stats.seeds += c.seeds
-    stats.candidates += c.candidates
-    rejected = r.rejected.tolist()
-    for reason in REASONS:
-        k = rejected[reason]
+    (rows_scanned, runs, seeds, candidates, rejected), = r.counts.tolist()
+    stats.rows_scanned += rows_scanned
+    stats.runs += runs
+    stats.seeds += seeds
+    stats.candidates += candidates
+    for key, k in zip(_REASON_KEYS, rejected.tolist()[1:]):  # REASONS: Reject 1, 2, ... in order
         if k:
-            key = reason.name.lower()
             stats.rejected[key] = stats.rejected.get(key, 0) + k
-    rows, x, cand = r.rows, r.x, r.candidates
+    rows, x = r.rows, r.x
     stacks: list[Stack] = []
     verified: list[Stack] = []
-    for i, (a, b, pos, ok, (t0, b0, t1, b1), dark, bright) in enumerate(zip(
-            cand.start.tolist(), cand.stop.tolist(), cand.positive.tolist(), cand.verified.tolist(),
-            cand.ends.tolist(), cand.dark.tolist(), cand.bright.tolist())):
+    for a, b, pos, ok, t0, b0, t1, b1, median_x, dark, bright in r.candidates.tolist():
         if ok:
-            st = Stack(rows[a:b], x[a:b], pos, dark, bright, ((t0, b0), (t1, b1)), cand.median_x[i])
+            st = Stack(rows[a:b], x[a:b], pos, dark, bright, ((t0, b0), (t1, b1)), median_x)
             verified.append(st)
             stacks.append(st)
         elif keep_candidates:
-            stacks.append(Stack(rows[a:b], x[a:b], pos, median_x=cand.median_x[i]))
+            stacks.append(Stack(rows[a:b], x[a:b], pos, median_x=median_x))
     if len(verified) > 1:
         verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
     return stacks, verified
 
 
 @functools.lru_cache(maxsize=32)
-def search_settings(p: DetectorParams, fx: float, fy: float, bar_width: float, bar_height: float) -> SearchSettings:
-    """The :class:`~localizer._kernels.records.SearchSettings` of parameters ``p`` (resolved:
+def search_settings(p: DetectorParams, fx: float, fy: float, bar_width: float, bar_height: float) -> np.ndarray:
+    """The :class:`~localizer._kernels.records.SearchSettings` (as its ``(1,)`` record, which
+    the caller must not change) of parameters ``p`` (resolved:
     :meth:`DetectorParams.resolved`), a camera's focal lengths (px) and a target's bar width
     and height (m) (cached: ~30 conversions).
 
@@ -127,11 +128,11 @@ def search_settings(p: DetectorParams, fx: float, fy: float, bar_width: float, b
     ``2 (b / H) sin(max_alpha) / fy`` (eq 4.3, :func:`localizer._kernels.verify.verify_grey`).
     """
     ratio = bar_height / (3.0 * bar_width) * fy / fx  # rows / columns of a target facing the camera
-    return SearchSettings(
+    return as_record(SearchSettings(
         step=int(p.coarse_step), window=int(p.threshold_window), contrast_window=int(p.contrast_window),
         local_contrast=float(p.local_contrast), global_level=min(255, int(math.ceil(p.global_threshold))),
-        runs=run_test(p), min_contrast=float(p.min_contrast), min_contrast_ratio=float(p.min_contrast_ratio),
+        **run_test(p)._asdict(), min_contrast=float(p.min_contrast), min_contrast_ratio=float(p.min_contrast_ratio),
         min_rows=int(p.min_rows), max_row_gap=int(p.max_row_gap), aspect_lo=ratio * (1.0 - p.aspect_tolerance),
         aspect_hi=ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance), uniformity=float(p.uniformity),
         height_term=2.0 * bar_width / bar_height * math.sin(p.max_alpha) / fy, check_margins=bool(p.check_margins),
-        max_candidates=int(p.max_candidates), max_targets=int(p.max_targets))
+        max_candidates=int(p.max_candidates), max_targets=int(p.max_targets)))

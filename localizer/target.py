@@ -14,7 +14,7 @@ import functools
 from dataclasses import dataclass
 from typing import Literal
 
-from localizer._kernels.records import TargetConstants
+from localizer._kernels.records import TargetConstants, as_record
 from localizer.numeric import check_number
 
 Polarity = Literal["positive", "negative"]
@@ -48,6 +48,12 @@ class TargetSpec:
     def constants(self) -> TargetConstants:
         """``(bar_width, bar_height, margin)`` (m) as the compiled kernels take them (computed once)."""
         return TargetConstants(float(self.bar_width), float(self.bar_height), float(self.margin))
+
+    @functools.cached_property
+    def constants_record(self):
+        """:attr:`constants` as a ``(1,)`` record array, the form of the per-frame kernels'
+        arguments (computed once; do not change it)."""
+        return as_record(self.constants)
 
     @property
     def active_width(self) -> float:

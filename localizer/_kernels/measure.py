@@ -13,13 +13,13 @@ import numpy as np
 
 from localizer._jit import jit
 from localizer._kernels.exact_pose import fit
-from localizer._kernels.records import ExactResult, FitStatus, PoseValues
+from localizer._kernels.records import EXACT_RESULT, FitStatus, Intrinsics, TargetConstants
 from localizer._kernels.subpixel import edge_rows, subpixel
 from localizer._kernels.target_test import makes_target
 
 
 @jit
-def exact_measure(image, stack_rows, bounds, ends, positive, cam, target, settings):
+def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, settings):
     """:func:`localizer.exact_pose.exact_measure`'s compiled body.
 
     Args:
@@ -28,28 +28,49 @@ def exact_measure(image, stack_rows, bounds, ends, positive, cam, target, settin
         bounds: ``(4,)`` float median run boundaries of the stack (columns).
         ends: ``((top1, bottom1), (top2, bottom2))`` rough bar ends (rows).
         positive: target polarity (black bars on white).
-        cam: :class:`~localizer._kernels.records.Intrinsics` (px).
-        target: :class:`~localizer._kernels.records.TargetConstants` (m).
-        settings: :class:`~localizer._kernels.records.ExactSettings`.
+        camera: ``(1,)`` :data:`~localizer._kernels.records.INTRINSICS` record (px).
+        target: ``(1,)`` :data:`~localizer._kernels.records.TARGET_CONSTANTS` record (m).
+        settings: ``(1,)`` :data:`~localizer._kernels.records.EXACT_SETTINGS` record.
 
-    Returns an :class:`~localizer._kernels.records.ExactResult`: ``found`` False when the
-    edges do not make a target or no fit converged (the pose is then zeros and the
-    covariance the identity); the edges (px) in either case.
+    Returns a ``(1,)`` :data:`~localizer._kernels.records.EXACT_RESULT` record: ``found``
+    False when the edges do not make a target or no fit converged (the pose is then zeros
+    and the covariance the identity); the edges (px) in either case.
     """
+    c, t, st = camera[0], target[0], settings[0]
+    cam = Intrinsics(c.fx, c.fy, c.cx, c.cy)
+    tc = TargetConstants(t.bar_width, t.bar_height, t.margin)
     e = np.empty((2, 2), np.int64)
     e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
     rows = edge_rows(stack_rows)
     m, _, _, _ = subpixel(image, rows, bounds, e, positive)
-    edges, cxs, top, bot = m.edges, m.bar_cx, m.top, m.bottom
-    none = PoseValues(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
-    out = ((edges[0], edges[1], edges[2], edges[3]), (cxs[0], cxs[1]), (top[0], top[1]), (bot[0], bot[1]))
+    edges, top, bot = m.edges, m.top, m.bottom
+    out = np.zeros(1, EXACT_RESULT)
+    r = out[0]
+    r.edge0, r.edge1, r.edge2, r.edge3 = edges[0], edges[1], edges[2], edges[3]
+    r.bar_cx1, r.bar_cx2 = m.bar_cx[0], m.bar_cx[1]
+    r.top1, r.top2, r.bottom1, r.bottom2 = top[0], top[1], bot[0], bot[1]
+    for k in range(3):
+        r.cov[k, k] = 1.0
     if not makes_target(edges[0], edges[1], edges[2], edges[3], bot[0] - top[0], bot[1] - top[1],
-                        settings.width_tolerance, settings.width_slack, settings.min_rows):
-        return ExactResult(False, out[0], out[1], out[2], out[3], none, np.eye(3))
-    f = fit(m, cam, target, positive, settings.sigma_floor, settings.iterations)
+                        st.width_tolerance, st.width_slack, st.min_rows):
+        return out
+    f = fit(m, cam, tc, positive, st.sigma_floor, st.iterations)
     if f.status != FitStatus.FITTED:
-        return ExactResult(False, out[0], out[1], out[2], out[3], none, np.eye(3))
+        return out
     p = f.p
-    pose = PoseValues(math.hypot(p[0], p[1]), math.atan2(p[0], p[1]), p[2], p[1], p[0], p[3], p[4], f.alpha1,
-                      f.alpha2, f.n_solutions, f.chi2)
-    return ExactResult(True, out[0], out[1], out[2], out[3], pose, f.cov)
+    r.found = True
+    r.distance = math.hypot(p[0], p[1])
+    r.beta = math.atan2(p[0], p[1])
+    r.alpha = p[2]
+    r.z = p[1]
+    r.x = p[0]
+    r.height = p[3]
+    r.edge_bias = p[4]
+    r.alpha1 = f.alpha1
+    r.alpha2 = f.alpha2
+    r.n_solutions = f.n_solutions
+    r.chi2 = f.chi2
+    for i in range(3):
+        for j in range(3):
+            r.cov[i, j] = f.cov[i, j]
+    return out

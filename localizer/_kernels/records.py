@@ -6,6 +6,15 @@ members as integers that keep their enum type. The kernels therefore take the ca
 the target and the search settings as the named tuples below rather than as long lists
 of positional scalars, and return named tuples rather than arrays packed by index.
 
+The per-frame entry points (:func:`localizer._kernels.search.recognize`,
+:func:`localizer._kernels.measure.exact_measure`) take and return numpy *records*
+(structured arrays, fields read by name in nopython code too) instead: numba types a
+named tuple argument in Python code, ~1 µs for a small one and ~3.5 µs for
+:class:`SearchSettings`, and boxes a named tuple result by calling its class, while a
+record array crosses the boundary like any array (~0.1 µs). Their fields are declared
+once, as a named tuple (:class:`SearchSettings`) or a dtype (:data:`CANDIDATE`, ...);
+:func:`as_record` turns a named tuple into its record by field name.
+
 This module imports neither numba nor the kernels: the Python modules build these
 records without compiling anything.
 """
@@ -16,9 +25,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Candidates", "ColumnModel", "ExactResult", "ExactSettings", "FitGeometry", "FitStatus", "Intrinsics", "Levels", "MeasuredEdges",
-           "N_REASONS", "PoseFit", "PoseValues", "ProfileFit", "REASONS", "Refinement", "Reject", "RunTest",
-           "SearchCounts", "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification"]
+__all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "N_REASONS", "REASONS", "SEARCH_COUNTS",
+           "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitGeometry", "FitStatus",
+           "Intrinsics", "Levels", "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest",
+           "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record",
+           "record_dtype"]
 
 
 # ------------------------------------------------------------------ inputs
@@ -57,14 +68,22 @@ class RunTest(NamedTuple):
 class SearchSettings(NamedTuple):
     """Everything the compiled search (:func:`localizer._kernels.search.recognize`) needs
     besides the image, resolved for one frame size, camera and target
-    (:func:`localizer.recognize.search_settings`). Grey levels are 8-bit levels."""
+    (:func:`localizer.recognize.search_settings`; passed as :func:`as_record`). Grey levels
+    are 8-bit levels."""
 
     step: int  # rows between coarse scan lines (thesis N)
     window: int  # px, local midway-threshold window
     contrast_window: int  # px, thesis "area of five pixels"
     local_contrast: float  # grey levels that switch a line to the midway threshold
     global_level: int  # grey level of the global threshold (<= 255)
-    runs: RunTest  # the §4.5.1 run test
+    # the §4.5.1 run test (the fields of RunTest)
+    min_bar_px: int
+    width_tolerance: float
+    width_slack: float
+    max_edge_shift: float
+    min_margin_ratio: float
+    reject_periodic: bool
+    periodic_tolerance: float
     min_contrast: float  # grey levels between adjacent segments
     min_contrast_ratio: float  # or this share of the bright level (dim light)
     min_rows: int  # rows a stack must span
@@ -80,7 +99,7 @@ class SearchSettings(NamedTuple):
 
 class ExactSettings(NamedTuple):
     """Settings of the fused subpixel-edges + exact-pose call
-    (:func:`localizer._kernels.measure.exact_measure`)."""
+    (:func:`localizer._kernels.measure.exact_measure`; passed as :func:`as_record`)."""
 
     sigma_floor: float  # px, added in quadrature to every edge's standard error
     iterations: int  # Gauss-Newton iterations per start
@@ -144,37 +163,29 @@ class Verification(NamedTuple):
     bottom2: int
 
 
-class SearchCounts(NamedTuple):
-    """Work counts of one search (:class:`localizer.DetectionStats` fields)."""
+#: work counts of one search (:class:`localizer.DetectionStats` fields) and the
+#: rejections, indexed by :class:`Reject`: a (1,) record array
+SEARCH_COUNTS = np.dtype([("rows_scanned", np.int64), ("runs", np.int64), ("seeds", np.int64),
+                          ("candidates", np.int64), ("rejected", np.int64, (N_REASONS,))])
 
-    rows_scanned: int
-    runs: int
-    seeds: int
-    candidates: int
-
-
-class Candidates(NamedTuple):
-    """The ``C`` candidate stacks of one search, ``(C,)`` / ``(C, k)`` arrays. Stack ``c``'s
-    rows are ``rows[start[c]:stop[c]]`` of :class:`SearchResult`."""
-
-    start: np.ndarray  # (C,) int64
-    stop: np.ndarray  # (C,) int64
-    positive: np.ndarray  # (C,) bool: black bars on white
-    verified: np.ndarray  # (C,) bool
-    ends: np.ndarray  # (C, 4) int64: top1, bottom1, top2, bottom2 rows (verified stacks)
-    median_x: np.ndarray  # (C, 4) float: median run boundaries (columns)
-    dark: np.ndarray  # (C,) float: grey levels (verified stacks)
-    bright: np.ndarray  # (C,) float
+#: one candidate stack of a search; its rows are ``rows[start:stop]`` of :class:`SearchResult`
+CANDIDATE = np.dtype([
+    ("start", np.int64), ("stop", np.int64),
+    ("positive", np.bool_),  # black bars on white
+    ("verified", np.bool_),
+    ("top1", np.int64), ("bottom1", np.int64), ("top2", np.int64), ("bottom2", np.int64),  # rough bar ends (rows)
+    ("median_x", np.float64, (4,)),  # median run boundaries (columns)
+    ("dark", np.float64), ("bright", np.float64),  # grey levels (verified stacks; else 0)
+])
 
 
 class SearchResult(NamedTuple):
     """Result of :func:`localizer._kernels.search.recognize`."""
 
-    counts: SearchCounts
-    rejected: np.ndarray  # (N_REASONS,) int64, indexed by Reject
+    counts: np.ndarray  # (1,) SEARCH_COUNTS record
     rows: np.ndarray  # (N,) int64 image rows of all candidates' lines
     x: np.ndarray  # (N, 4) int64 run boundaries on those lines
-    candidates: Candidates
+    candidates: np.ndarray  # (C,) CANDIDATE records
 
 
 class ProfileFit(NamedTuple):
@@ -225,33 +236,19 @@ class PoseFit(NamedTuple):
     n_solutions: int  # minima found in front of the camera
 
 
-class PoseValues(NamedTuple):
-    """A fitted exact pose as scalars (m, rad; ``edge_bias`` px)."""
-
-    distance: float
-    beta: float
-    alpha: float
-    z: float
-    x: float
-    height: float
-    edge_bias: float
-    alpha1: float
-    alpha2: float
-    n_solutions: int
-    chi2: float
-
-
-class ExactResult(NamedTuple):
-    """Result of :func:`localizer._kernels.measure.exact_measure`: whether a pose was fitted,
-    the measured edges (px), the pose and its covariance (identity when not fitted)."""
-
-    found: bool
-    edges: tuple  # (4,) floats
-    bar_cx: tuple  # (2,)
-    top: tuple  # (2,)
-    bottom: tuple  # (2,)
-    pose: PoseValues
-    cov: np.ndarray  # (3, 3)
+#: result of :func:`localizer._kernels.measure.exact_measure`, a (1,) record array: whether
+#: a pose was fitted, the measured edges (px), the pose (m, rad; ``edge_bias`` px; zeros
+#: when not fitted) and its covariance over (d, beta, alpha) (identity when not fitted)
+EXACT_RESULT = np.dtype([
+    ("found", np.bool_),
+    ("edge0", np.float64), ("edge1", np.float64), ("edge2", np.float64), ("edge3", np.float64),  # left to right
+    ("bar_cx1", np.float64), ("bar_cx2", np.float64),  # bar centre columns
+    ("top1", np.float64), ("top2", np.float64), ("bottom1", np.float64), ("bottom2", np.float64),  # at bar_cx
+    ("distance", np.float64), ("beta", np.float64), ("alpha", np.float64), ("z", np.float64), ("x", np.float64),
+    ("height", np.float64), ("edge_bias", np.float64), ("alpha1", np.float64), ("alpha2", np.float64),
+    ("n_solutions", np.int64), ("chi2", np.float64),
+    ("cov", np.float64, (3, 3)),
+])
 
 
 class Selection(NamedTuple):
@@ -281,3 +278,33 @@ class Refinement(NamedTuple):
     p: np.ndarray
     n_pixels: int
     cost: float
+
+
+# ------------------------------------------------------------------ records
+_NUMPY = {"int": np.int64, "float": np.float64, "bool": np.bool_}
+
+
+def record_dtype(cls: type) -> np.dtype:
+    """The record dtype of a named tuple class of ``int``, ``float`` and ``bool`` fields
+    (int64, float64, bool), fields by name in the class's order."""
+    kinds = {name: getattr(kind, "__forward_arg__", kind) for name, kind in cls.__annotations__.items()}
+    return np.dtype([(name, _NUMPY[kind if isinstance(kind, str) else kind.__name__]) for name, kind in kinds.items()])
+
+
+#: record dtypes of the settings passed as records
+SEARCH_SETTINGS = record_dtype(SearchSettings)
+EXACT_SETTINGS = record_dtype(ExactSettings)
+INTRINSICS = record_dtype(Intrinsics)
+TARGET_CONSTANTS = record_dtype(TargetConstants)
+_DTYPES = {SearchSettings: SEARCH_SETTINGS, ExactSettings: EXACT_SETTINGS, Intrinsics: INTRINSICS,
+           TargetConstants: TARGET_CONSTANTS}
+
+
+def as_record(values: NamedTuple) -> np.ndarray:
+    """``(1,)`` record array of the named tuple ``values`` (one of the settings classes
+    above), fields by name."""
+    dtype = _DTYPES[type(values)]
+    out = np.zeros(1, dtype)
+    for name in values._fields:
+        out[0][name] = getattr(values, name)
+    return out

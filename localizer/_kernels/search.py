@@ -7,18 +7,19 @@ import numpy as np
 
 from localizer._jit import jit
 from localizer._kernels.fine import fine_stack
-from localizer._kernels.records import N_REASONS, Candidates, Reject, SearchCounts, SearchResult
+from localizer._kernels.records import CANDIDATE, SEARCH_COUNTS, Reject, RunTest, SearchResult
 from localizer._kernels.scan import copy, levels, line_extrema, rle, threshold, triples
 from localizer._kernels.verify import verify
 
 
 @jit
-def recognize(image, s):
+def recognize(image, settings):
     """The search of :func:`localizer.recognize.find_stacks`, compiled as one call.
 
     Args:
         image: ``(H, W)`` uint8 grey frame, C-contiguous.
-        s: the :class:`~localizer._kernels.records.SearchSettings` of the frame.
+        settings: ``(1,)`` :data:`~localizer._kernels.records.SEARCH_SETTINGS` record, the
+            :class:`~localizer._kernels.records.SearchSettings` of the frame.
 
     The coarse scan lines are every ``s.step``-th image row, thresholded over ``s.window``
     px (:func:`localizer.scan.threshold_lines`). In order: threshold, code and search the
@@ -31,31 +32,36 @@ def recognize(image, s):
     (:func:`localizer._kernels.fine.fine_stack`) and the verification
     (:func:`localizer._kernels.verify.verify`).
 
-    Returns a :class:`~localizer._kernels.records.SearchResult`: the work counts, the
-    rejections counted by :class:`~localizer._kernels.records.Reject`, the rows ``(N,)`` and
-    run boundaries ``(N, 4)`` of every candidate's lines and the ``C`` candidate stacks
-    (:class:`~localizer._kernels.records.Candidates`).
+    Returns a :class:`~localizer._kernels.records.SearchResult`: the work counts and the
+    rejections counted by :class:`~localizer._kernels.records.Reject`
+    (:data:`~localizer._kernels.records.SEARCH_COUNTS`), the rows ``(N,)`` and run
+    boundaries ``(N, 4)`` of every candidate's lines and the ``C`` candidate stacks
+    (:data:`~localizer._kernels.records.CANDIDATE` records).
     """
-    step, window, max_row_gap, runs = s.step, s.window, s.max_row_gap, s.runs
+    s = settings[0]
+    runs = RunTest(s.min_bar_px, s.width_tolerance, s.width_slack, s.max_edge_shift, s.min_margin_ratio,
+                   s.reject_periodic, s.periodic_tolerance)
+    step, window, max_row_gap = s.step, s.window, s.max_row_gap
     max_candidates, max_targets = s.max_candidates, s.max_targets
     h, w = image.shape
     lines = np.empty(((h + step - 1) // step, w), np.uint8)  # contiguous, so that loops vectorise
     for i in range(lines.shape[0]):
         copy(image[i * step], lines[i])
     hi, lo = line_extrema(lines, window)
-    rows_scanned = lines.shape[0]
-    rejected = np.zeros(N_REASONS, np.int64)
+    counts = np.zeros(1, SEARCH_COUNTS)
+    c = counts[0]
+    c.rows_scanned = lines.shape[0]
     rows_out = np.empty(64, np.int64)
     x_out = np.empty((64, 4), np.int64)
     binary = threshold(lines, hi, lo, s.contrast_window, s.local_contrast, s.global_level)
     g, ln, line, xr = rle(binary)
-    n_runs = ln.size
+    c.runs = ln.size
     if ln.size < 5:
-        return _result(SearchCounts(rows_scanned, n_runs, 0, 0), rejected, rows_out, x_out, _candidates(0), 0, 0)
+        return SearchResult(counts, rows_out[:0], x_out[:0], np.zeros(0, CANDIDATE))
     idx, tx, reg = triples(ln, xr, line, lines.shape[1], runs)
     nt = idx.size
     if nt == 0:
-        return _result(SearchCounts(rows_scanned, n_runs, 0, 0), rejected, rows_out, x_out, _candidates(0), 0, 0)
+        return SearchResult(counts, rows_out[:0], x_out[:0], np.zeros(0, CANDIDATE))
     tline = np.empty(nt, np.int64)
     ty = np.empty(nt, np.int64)
     tpos = np.empty(nt, np.bool_)
@@ -66,16 +72,16 @@ def recognize(image, s):
     lv = levels(lines, tline, reg)
     seeds, top, bottom, thr_all, key = coarse_seeds(image, lv, ty, tx, tpos, s)
     ns = seeds.size
+    c.seeds = ns
     if ns == 0:
-        return _result(SearchCounts(rows_scanned, n_runs, 0, 0), rejected, rows_out, x_out, _candidates(0), 0, 0)
+        return SearchResult(counts, rows_out[:0], x_out[:0], np.zeros(0, CANDIDATE))
     order = np.argsort(key, kind="mergesort")
     nmax = min(ns, max_candidates)
-    cand = _candidates(nmax)
+    cand = np.zeros(nmax, CANDIDATE)
     taken = np.empty((nmax, 6), np.int64)  # (row0, row1, x0, x1, positive, verified)
     nc = 0
     nv = 0
     nrows = 0
-    n_candidates = 0
     gap = 2 + max_row_gap  # a hit this near a stack's end belongs to it (blurred end lines)
     for o in range(ns):
         q = order[o]
@@ -94,11 +100,11 @@ def recognize(image, s):
             break
         srows, sx, med, scanned = fine_stack(image, y, (tx[k, 0], tx[k, 1], tx[k, 2], tx[k, 3]), pk, thr_all[k],
                                              (top[q], bottom[q]), max_row_gap, runs)
-        rows_scanned += scanned
+        c.rows_scanned += scanned
         if srows.size == 0:
-            rejected[Reject.FINE_SCAN] += 1
+            c.rejected[Reject.FINE_SCAN] += 1
             continue
-        n_candidates += 1
+        c.candidates += 1
         m = srows.size
         while nrows + m > rows_out.size:
             grown = np.empty(2 * rows_out.size, np.int64)
@@ -111,9 +117,10 @@ def recognize(image, s):
         x_out[nrows:nrows + m] = sx
         v = verify(image, srows, med, pk, s)
         ok = v.reason == Reject.NONE
-        cand.start[nc] = nrows
-        cand.stop[nc] = nrows + m
-        cand.positive[nc] = pk
+        cd = cand[nc]
+        cd.start = nrows
+        cd.stop = nrows + m
+        cd.positive = pk
         x0 = sx[0, 0]
         x1 = sx[0, 3]
         for i in range(m):
@@ -125,38 +132,22 @@ def recognize(image, s):
         taken[nc, 3] = x1
         taken[nc, 4] = 1 if pk else 0
         taken[nc, 5] = 1 if ok else 0
-        for c in range(4):
-            cand.median_x[nc, c] = med[c]
+        for k in range(4):
+            cd.median_x[k] = med[k]
         if ok:
-            cand.verified[nc] = True
-            cand.ends[nc, 0] = v.top1
-            cand.ends[nc, 1] = v.bottom1
-            cand.ends[nc, 2] = v.top2
-            cand.ends[nc, 3] = v.bottom2
-            cand.dark[nc] = v.dark
-            cand.bright[nc] = v.bright
+            cd.verified = True
+            cd.top1 = v.top1
+            cd.bottom1 = v.bottom1
+            cd.top2 = v.top2
+            cd.bottom2 = v.bottom2
+            cd.dark = v.dark
+            cd.bright = v.bright
             nv += 1
         else:
-            rejected[v.reason] += 1
+            c.rejected[v.reason] += 1
         nrows += m
         nc += 1
-    return _result(SearchCounts(rows_scanned, n_runs, ns, n_candidates), rejected, rows_out, x_out, cand, nrows, nc)
-
-
-@jit
-def _candidates(n):
-    """Zeroed :class:`~localizer._kernels.records.Candidates` for ``n`` stacks."""
-    return Candidates(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.bool_), np.zeros(n, np.bool_),
-                      np.zeros((n, 4), np.int64), np.zeros((n, 4)), np.zeros(n), np.zeros(n))
-
-
-@jit
-def _result(counts, rejected, rows, x, cand, nrows, nc):
-    """The :class:`~localizer._kernels.records.SearchResult` of the first ``nrows`` lines and
-    ``nc`` candidates."""
-    c = Candidates(cand.start[:nc], cand.stop[:nc], cand.positive[:nc], cand.verified[:nc], cand.ends[:nc],
-                   cand.median_x[:nc], cand.dark[:nc], cand.bright[:nc])
-    return SearchResult(counts, rejected, rows[:nrows], x[:nrows], c)
+    return SearchResult(counts, rows_out[:nrows], x_out[:nrows], cand[:nc])
 
 
 @jit
@@ -183,14 +174,14 @@ def coarse_seeds(image, lv, ty, tx, tpos, s):
     Args: ``image`` (H, W) uint8; ``lv`` (T, 7) grey levels; ``ty`` (T,) rows, ``tx`` (T, 4)
     run boundaries (columns), ``tpos`` (T,) polarities of the triples; ``s`` the
     :class:`~localizer._kernels.records.SearchSettings` (``min_contrast``,
-    ``min_contrast_ratio``, ``runs.reject_periodic``, ``min_rows``, ``max_row_gap`` and
+    ``min_contrast_ratio``, ``reject_periodic``, ``min_rows``, ``max_row_gap`` and
     ``aspect_lo``, the ``lo_ratio`` above).
     Returns ``(seeds, top, bottom, thr, key)``: indices (S,) of the triples that pass,
     the (exclusive) bounds (S,) of the rows their stacks span as far as looked, the
     midway grey level (T,) of every triple, and the shape key (S,) (max - min) / max of
     the three run lengths.
     """
-    min_contrast, min_contrast_ratio, reject_periodic = s.min_contrast, s.min_contrast_ratio, s.runs.reject_periodic
+    min_contrast, min_contrast_ratio, reject_periodic = s.min_contrast, s.min_contrast_ratio, s.reject_periodic
     min_rows, max_row_gap, lo_ratio = s.min_rows, s.max_row_gap, s.aspect_lo
     h, w = image.shape
     nt = ty.size
