@@ -20,12 +20,20 @@ The flags, in one place:
 Nothing else (``fastmath``, ``parallel``, ``error_model``) is set: the results are those
 of IEEE double arithmetic in the order the source is written, and a float division by
 zero raises ``ZeroDivisionError`` as in Python.
+
+:data:`inline` is the same with ``inline="always"``: for the few-line helpers called in
+the innermost loops (the edge projection, the blurred step, the pivoting step of the
+small solves), numba inserts their body into the caller before compiling it, as if
+written there (the arithmetic and its order are unchanged; a call per pixel and a
+loop over a matrix size known only at run time would cost several per cent).
 """
 from __future__ import annotations
 
 import numba
 
-__all__ = ["jit"]
+__all__ = ["inline", "jit"]
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)
+#: the decorator of the small helpers inlined into their callers (module docstring)
+inline = numba.njit(cache=True, nogil=True, inline="always")

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from localizer._jit import jit
+from localizer._jit import inline, jit
 
 
 @jit
@@ -49,7 +49,7 @@ def inverse(A):
     return M[:, n:].copy()
 
 
-@jit
+@inline
 def _pivot(M, k, n, ncols):
     """Partial pivoting at column ``k`` of ``M`` (n, ncols): swap into row ``k`` the first row
     ``>= k`` of largest ``|M[i, k]|`` (all ``ncols`` columns)."""
@@ -78,7 +78,7 @@ def _eliminate(M, n, m):
                         M[i, c] -= f * M[k, c]
 
 
-@jit
+@inline
 def solve_augmented(M, x):
     """Solve the augmented system ``M = [A | b]`` (n, n + 1) by Gaussian elimination with
     partial pivoting (``M`` is overwritten) and back substitution into ``x`` (n,).

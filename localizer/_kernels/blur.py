@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from localizer._jit import jit
+from localizer._jit import inline, jit
 
 #: a pixel (or row-mean profile pixel) at or above this grey level is taken as clipped
 CLIP = 254.5
@@ -36,7 +36,7 @@ def blur_weights(s):
     return w, dw
 
 
-@jit
+@inline
 def blurred_step(j, e, w, dw):
     """Fraction ``F`` of pixel ``j`` beyond an edge at ``e`` (box pixels ``[j - 0.5, j + 0.5]``)
     after the blur kernel ``w`` (:func:`blur_weights`), and its derivatives ``dF/de``, ``dF/ds``."""
@@ -52,7 +52,7 @@ def blurred_step(j, e, w, dw):
     return f, de, ds
 
 
-@jit
+@inline
 def edge_fraction(j, e, w, dw):
     """:func:`blurred_step` of pixel ``j`` for an edge at ``e``, short-cut to ``(1, 0, 0)``
     (``(0, 0, 0)``) when the pixel lies wholly beyond (before) the edge: more than 4.5 px

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from localizer._jit import jit
+from localizer._jit import inline, jit
 
 
-@jit
+@inline
 def bar_edge_u(k, b):
     """Target abscissa (m) of vertical bar edge ``k`` (0..3, left to right) for bar width
     ``b`` (m): ``(k - 1.5) b``."""
@@ -39,13 +39,13 @@ def bar_edges_u(b):
     return u
 
 
-@jit
+@inline
 def edge_x(X, Z, c, s, u, cam):
     """Image column (px) of the target's vertical line at abscissa ``u`` (m)."""
     return cam.cx + cam.fx * (X + u * c) / (Z - u * s)
 
 
-@jit
+@inline
 def edge_x_jacobian(X, Z, c, s, u, cam):
     """:func:`edge_x` and its derivatives: ``(x, dx/dX, dx/dZ, dx/dalpha)`` (px, px/m, px/m,
     px/rad), computed through ``1 / (Z - u sin a)``."""
@@ -56,14 +56,14 @@ def edge_x_jacobian(X, Z, c, s, u, cam):
     return cam.cx + fx * q, fx * iM, -fx * q * iM, fx * u * (N * c - s / iM) * iM * iM
 
 
-@jit
+@inline
 def plane(X, Z, c, s):
     """The target plane's ``(D, 1 / D, dD/dalpha)`` with ``D = Z cos a + X sin a`` (m)."""
     D = Z * c + X * s
     return D, 1.0 / D, X * c - Z * s
 
 
-@jit
+@inline
 def ray_inverse_range(t, c, s, D, iD, dD):
     """``1 / z`` (1/m) where the ray ``x / z = t`` meets the target plane (``D, iD, dD`` from
     :func:`plane`), and its derivatives over ``X``, ``Z`` and ``alpha``."""

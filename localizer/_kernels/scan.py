@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from localizer._jit import jit
+from localizer._jit import inline, jit
 
 
 @jit
@@ -192,7 +192,7 @@ def grown(a, n, cap):
     return out
 
 
-@jit
+@inline
 def near_equal(l0, l1, l2, width_tolerance, width_slack, max_edge_shift):
     """The §4.5.1 run test (:func:`localizer.scan.near_equal`) for one triple of run lengths
     ``l0, l1, l2`` (px)."""

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from localizer._jit import jit
+from localizer._jit import inline, jit
 from localizer._kernels.clipped import fit_bar_profile, refine_horizontal_clipped
 from localizer._kernels.records import MeasuredEdges, ProfileFit
 
@@ -29,7 +29,7 @@ def edge_rows(rows):
     return rows[e:nr - e] if nr - 2 * e >= 3 else rows
 
 
-@jit
+@inline
 def centroid(d, centre, hw, j0):
     """Centroid of signed differences ``d`` (L,) located at ``j0 + i + 0.5``, weighted by
     a trapezoid window of half-width ``hw`` centred at ``centre`` (all px)."""
