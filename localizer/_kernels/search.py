@@ -173,7 +173,7 @@ def coarse_seeds(image, lv, ty, tx, tpos, s):
 
     Args: ``image`` (H, W) uint8; ``lv`` (T, 7) grey levels; ``ty`` (T,) rows, ``tx`` (T, 4)
     run boundaries (columns), ``tpos`` (T,) polarities of the triples; ``s`` the
-    :class:`~localizer._kernels.records.SearchSettings` (``min_contrast``,
+    :class:`~localizer._kernels.records.SearchSettings` record (``min_contrast``,
     ``min_contrast_ratio``, ``reject_periodic``, ``min_rows``, ``max_row_gap`` and
     ``aspect_lo``, the ``lo_ratio`` above).
     Returns ``(seeds, top, bottom, thr, key)``: indices (S,) of the triples that pass,

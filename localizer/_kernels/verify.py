@@ -26,7 +26,7 @@ def verify(image, rows, xb, positive, s):
 
     Args: ``image`` (H, W) uint8; ``rows`` (n,) int64 image rows of the stack, increasing;
     ``xb`` (4,) float columns; ``positive``: black bars on white; ``s``: the
-    :class:`~localizer._kernels.records.SearchSettings` (``min_rows``, ``aspect_lo``,
+    :class:`~localizer._kernels.records.SearchSettings` (its record) (``min_rows``, ``aspect_lo``,
     ``aspect_hi``, ``uniformity``, ``min_contrast``, ``min_contrast_ratio``,
     ``height_term``, ``check_margins``).
     Returns a :class:`~localizer._kernels.records.Verification` (``reason`` is
@@ -50,7 +50,7 @@ def verify_grey(image, span, sample, xb, positive, s):
     """The grey-level part of :func:`verify` for the stack on rows ``span = (r0, r1)``
     (first, last) with median run boundaries ``xb`` (4,) (columns), its segments sampled
     on rows ``sample = (ra, rb)`` (``ra:rb``); ``s`` the
-    :class:`~localizer._kernels.records.SearchSettings`.
+    :class:`~localizer._kernels.records.SearchSettings` (its record).
 
     Uniform segments (``3.3 sd`` of the non-boundary pixels at most ``uniformity``),
     contrast between them, the rough bar ends (:func:`rough_ends`) at each bar's centre
