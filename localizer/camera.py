@@ -22,24 +22,19 @@ distortion). The thesis camera has its principal point at pixel (256, 240)
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from localizer._kernels.records import Intrinsics, as_record
+from localizer.numeric import check_number
+
 #: Thesis camera (Pulnix TM-450): sensor 8.8 x 6.6 mm imaged on 512 x 480 pixels.
 THESIS_SENSOR_MM = (8.8, 6.6)
 THESIS_SIZE_PX = (512, 480)
-
-
-def _finite_positive(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"Camera.{name} must be a finite number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"Camera.{name} must be finite and positive, got {value!r}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -64,18 +59,15 @@ class Camera:
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy"):
-            object.__setattr__(self, name, _finite_positive(name, getattr(self, name)))
+            object.__setattr__(self, name, check_number(f"Camera.{name}", getattr(self, name), low=0.0,
+                                                        low_open=True, unit="px"))
         for name in ("cx", "cy"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(float(value)):
-                raise ValueError(f"Camera.{name} must be a finite number (px), got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, check_number(f"Camera.{name}", getattr(self, name), unit="px"))
         for name in ("width", "height"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 8:
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):  # not merely a whole float
                 raise ValueError(f"Camera.{name} must be an integer >= 8 (px), got {value!r}")
-            object.__setattr__(self, name, int(value))
+            object.__setattr__(self, name, check_number(f"Camera.{name}", value, low=8, integer=True, unit="px"))
         dist = () if self.dist is None else tuple(float(v) for v in np.ravel(self.dist))
         if len(dist) not in (0, 4, 5, 8, 12, 14):
             raise ValueError(f"Camera.dist must have 0, 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist)}")
@@ -93,7 +85,7 @@ class Camera:
         8.8 x 6.6 mm sensor on 512 x 480 pixels, principal point (256, 240):
         ``fx = focal_mm / 8.8 * 512``, ``fy = focal_mm / 6.6 * 480``.
         """
-        focal_mm = _finite_positive("focal_mm", focal_mm)
+        focal_mm = check_number("Camera.thesis focal_mm", focal_mm, low=0.0, low_open=True, unit="mm")
         (sw, sh), (w, h) = THESIS_SENSOR_MM, THESIS_SIZE_PX
         return cls(fx=focal_mm / sw * w, fy=focal_mm / sh * h, cx=256.0, cy=240.0, width=w, height=h)
 
@@ -187,6 +179,17 @@ class Camera:
     @property
     def has_distortion(self) -> bool:
         return bool(self.dist)
+
+    @functools.cached_property
+    def intrinsics(self) -> Intrinsics:
+        """``(fx, fy, cx, cy)`` (px) as the compiled kernels take them (computed once)."""
+        return Intrinsics(self.fx, self.fy, self.cx, self.cy)
+
+    @functools.cached_property
+    def intrinsics_record(self) -> np.ndarray:
+        """:attr:`intrinsics` as a ``(1,)`` record array, the form of the per-frame kernels'
+        arguments (computed once; do not change it)."""
+        return as_record(self.intrinsics)
 
     def scaled(self, width: int, height: int) -> "Camera":
         """The same optics imaged on ``width x height`` pixels (intrinsics scaled)."""

@@ -8,14 +8,18 @@ import time
 
 import numpy as np
 
+from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
-from localizer.edges import makes_target, subpixel_edges, thesis_edges
+from localizer.exact_pose import exact_measure, exact_pose
+from localizer.numeric import check_choice
 from localizer.observation import ImageMeasurements, TargetObservation
 from localizer.params import METHODS, DetectionStats, DetectorParams
 from localizer.photometric import refine_pose
-from localizer.pose import exact_measure, exact_pose, thesis_pose
 from localizer.recognize import find_stacks
+from localizer.subpixel_edges import subpixel_edges
 from localizer.target import TargetSpec
+from localizer.thesis_edges import thesis_edges
+from localizer.thesis_pose import thesis_pose
 
 #: an exact fit whose normalised residual exceeds this is not a target
 MAX_FIT_RMS = 7.0
@@ -83,7 +87,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     """
     t0 = time.perf_counter()
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        check_choice("detect_targets method", method, METHODS)
     if not isinstance(camera, Camera):
         raise ValueError(f"camera must be a localizer.Camera, got {type(camera).__name__}")
     if not isinstance(target, TargetSpec):
@@ -119,7 +123,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     """Subpixel edges and the exact pose of the verified stack ``v`` (refined on the pixels as
     ``p.photometric`` says, when ``refine``). Returns ``(edges, bar_cx, top, bottom, pose)``:
     tuples of 4, 2, 2 and 2 pixel coordinates and the pose, None when the edges do not make
-    a target (:func:`localizer.edges.makes_target`) or the model does not fit them."""
+    a target (:func:`localizer._kernels.target_test.makes_target`) or the model does not fit them."""
     saturated = v.bright >= 250.0
     clipped = saturated or (v.dark <= 5.0)
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
@@ -147,7 +151,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
 
 
 def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) -> bool:
-    """:func:`localizer.edges.makes_target` with the parameters ``p``."""
+    """:func:`localizer._kernels.target_test.makes_target` with the parameters ``p``."""
     return makes_target(*edges, bottom[0] - top[0], bottom[1] - top[1], float(p.width_tolerance),
                         float(p.width_slack), float(p.min_rows))
 

@@ -77,5 +77,7 @@ class TargetPose:
 
 
 def bar_edges_u(bar_width: float) -> np.ndarray:
-    """Target ``u`` (m) of the four vertical bar edges, left to right: ``-1.5b, -0.5b, 0.5b, 1.5b``."""
+    """Target ``u`` (m) of the four vertical bar edges, left to right: ``-1.5b, -0.5b, 0.5b, 1.5b``
+    (``(k - 1.5) b``; compiled code uses :func:`localizer._kernels.projection.bar_edge_u`, which
+    gives the same values)."""
     return np.array([-1.5, -0.5, 0.5, 1.5]) * bar_width

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields, replace
 
+from localizer.numeric import check_choice, check_number
+
 METHODS = ("thesis", "exact")
 PHOTOMETRIC = ("off", "clipped", "auto", "all")
 
@@ -61,18 +63,14 @@ class DetectorParams:
             v = getattr(self, f.name)
             if f.name in ("debug_dir", "photometric") or v is None or isinstance(v, bool):
                 continue
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise ValueError(f"DetectorParams.{f.name} must be a finite non-negative number, got {v!r}")
-        if self.threshold_window is not None and self.threshold_window < 3:
-            raise ValueError("DetectorParams.threshold_window must be >= 3 px")
-        if self.contrast_window < 2:
-            raise ValueError("DetectorParams.contrast_window must be >= 2 px")
-        if self.edge_window < 3:
-            raise ValueError("DetectorParams.edge_window must be >= 3 px")
-        if self.photometric not in PHOTOMETRIC:
-            raise ValueError(f"DetectorParams.photometric must be one of {PHOTOMETRIC}, got {self.photometric!r}")
-        if not 0 < self.max_alpha < math.pi / 2:
-            raise ValueError("DetectorParams.max_alpha must be in (0, pi/2) rad")
+            check_number(f"DetectorParams.{f.name}", v, low=0.0)
+        if self.threshold_window is not None:
+            check_number("DetectorParams.threshold_window", self.threshold_window, low=3, unit="px")
+        check_number("DetectorParams.contrast_window", self.contrast_window, low=2, unit="px")
+        check_number("DetectorParams.edge_window", self.edge_window, low=3, unit="px")
+        check_choice("DetectorParams.photometric", self.photometric, PHOTOMETRIC)
+        check_number("DetectorParams.max_alpha", self.max_alpha, low=0.0, high=math.pi / 2, low_open=True,
+                     high_open=True, unit="rad")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "DetectorParams":

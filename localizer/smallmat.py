@@ -6,16 +6,24 @@ detector, the rest of a control loop): the library's code and work buffers have
 left the caches by then. These loops are a few hundred instructions and allocate
 nothing but their result. Accuracy is that of LAPACK for these sizes: partial
 pivoting for the solves, one-sided Jacobi (Hestenes) for the null vector.
+
+Two elimination orders share one pivoting step (:func:`_pivot`): Gauss-Jordan
+(:func:`solve`, :func:`inverse`; the clipped-edge fit and the pose covariance) and
+forward elimination with back substitution (:func:`solve_augmented`; the exact pose's
+Gauss-Newton steps, which must detect a singular system rather than raise). Both are
+exact in exact arithmetic; in floating point they differ in the last bits, and each
+caller keeps the order its recorded results were computed with.
 """
 from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from localizer._jit import inline, jit
 
-@numba.njit(cache=True, nogil=True)
+
+@jit
 def solve(A, b):
     """``x`` (n,) with ``A x = b`` for ``A`` (n, n), ``b`` (n,), by Gaussian elimination with
     partial pivoting (neither input is changed). An exactly singular ``A`` raises
@@ -28,7 +36,7 @@ def solve(A, b):
     return M[:, n].copy()
 
 
-@numba.njit(cache=True, nogil=True)
+@jit
 def inverse(A):
     """``A^-1`` (n, n) by Gauss-Jordan elimination with partial pivoting (``A`` is not
     changed). An exactly singular ``A`` raises ``ZeroDivisionError``."""
@@ -41,17 +49,24 @@ def inverse(A):
     return M[:, n:].copy()
 
 
-@numba.njit(cache=True, nogil=True)
+@inline
+def _pivot(M, k, n, ncols):
+    """Partial pivoting at column ``k`` of ``M`` (n, ncols): swap into row ``k`` the first row
+    ``>= k`` of largest ``|M[i, k]|`` (all ``ncols`` columns)."""
+    piv = k
+    for i in range(k + 1, n):
+        if abs(M[i, k]) > abs(M[piv, k]):
+            piv = i
+    if piv != k:
+        for c in range(ncols):
+            M[k, c], M[piv, c] = M[piv, c], M[k, c]
+
+
+@jit
 def _eliminate(M, n, m):
-    """Reduce the augmented ``M`` (n, n + m) in place to ``[I | A^-1 B]``."""
+    """Reduce the augmented ``M`` (n, n + m) in place to ``[I | A^-1 B]`` (Gauss-Jordan)."""
     for k in range(n):
-        piv = k
-        for i in range(k + 1, n):
-            if abs(M[i, k]) > abs(M[piv, k]):
-                piv = i
-        if piv != k:
-            for c in range(n + m):
-                M[k, c], M[piv, c] = M[piv, c], M[k, c]
+        _pivot(M, k, n, n + m)
         d = M[k, k]
         for c in range(k, n + m):
             M[k, c] /= d
@@ -63,7 +78,32 @@ def _eliminate(M, n, m):
                         M[i, c] -= f * M[k, c]
 
 
-@numba.njit(cache=True, nogil=True)
+@inline
+def solve_augmented(M, x):
+    """Solve the augmented system ``M = [A | b]`` (n, n + 1) by Gaussian elimination with
+    partial pivoting (``M`` is overwritten) and back substitution into ``x`` (n,).
+
+    Returns False, with ``x`` unchanged, when a pivot is exactly zero (a singular ``A``);
+    nothing is allocated, so that an iteration can reuse ``M`` and ``x``.
+    """
+    n = M.shape[0]
+    for k in range(n):
+        _pivot(M, k, n, n + 1)
+        if M[k, k] == 0.0:
+            return False
+        for i in range(k + 1, n):
+            f = M[i, k] / M[k, k]
+            for m in range(k, n + 1):
+                M[i, m] -= f * M[k, m]
+    for k in range(n - 1, -1, -1):
+        acc = M[k, n]
+        for m in range(k + 1, n):
+            acc -= M[k, m] * x[m]
+        x[k] = acc / M[k, k]
+    return True
+
+
+@jit
 def null_vector(A, sweeps=30):
     """Unit right singular vector (n,) of ``A`` (m, n), m >= n, for its smallest singular
     value: the least-squares solution of ``A v = 0``, ``|v| = 1`` (what

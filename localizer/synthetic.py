@@ -20,7 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from localizer.camera import Camera
-from localizer.geometry import TargetPose
+from localizer.geometry import TargetPose, bar_edges_u
 from localizer.target import TargetSpec
 
 SUBSAMPLES = 16  # column samples per pixel for slanted edges
@@ -45,7 +45,7 @@ LIGHTING: dict[str, Lighting] = {
 }
 
 
-def _quad_coverage(height: int, width: int, xl: float, xr: float, ytl: float, ytr: float,
+def quad_coverage(height: int, width: int, xl: float, xr: float, ytl: float, ytr: float,
                    ybl: float, ybr: float):
     """Pixel-area coverage of a quad with vertical sides ``x = xl``, ``x = xr``.
 
@@ -92,7 +92,7 @@ def target_outline(camera: Camera, pose: TargetPose, target: TargetSpec = Target
     (TL, TR, BR, BL), ``bar_heights`` (2,) pixel heights at the bar centres.
     """
     b, hh = target.bar_width, target.bar_height / 2.0
-    u = np.array([-1.5, -0.5, 0.5, 1.5]) * b
+    u = bar_edges_u(b)
     top = _project_ideal(camera, pose.points(u, -hh))
     bot = _project_ideal(camera, pose.points(u, hh))
     uo = target.outer_width / 2.0
@@ -134,7 +134,7 @@ def render_reflectance(camera: Camera, poses: Sequence[TargetPose], target: Targ
         quads = [((-uo, uo), vo, paper), ((-1.5 * b, -0.5 * b), hh, bar), ((0.5 * b, 1.5 * b), hh, bar)]
         for (ua, ub), vv, value in quads:
             p = _project_ideal(camera, pose.points(np.array([ua, ub, ua, ub]), np.array([-vv, -vv, vv, vv])))
-            r0, c0, cov = _quad_coverage(h, w, p[0, 0], p[1, 0], p[0, 1], p[1, 1], p[2, 1], p[3, 1])
+            r0, c0, cov = quad_coverage(h, w, p[0, 0], p[1, 0], p[0, 1], p[1, 1], p[2, 1], p[3, 1])
             if cov.size:
                 win = refl[r0:r0 + cov.shape[0], c0:c0 + cov.shape[1]]
                 win += (value - win) * cov

@@ -10,9 +10,12 @@ All lengths are metres.
 """
 from __future__ import annotations
 
-import math
+import functools
 from dataclasses import dataclass
 from typing import Literal
+
+from localizer._kernels.records import TargetConstants, as_record
+from localizer.numeric import check_number
 
 Polarity = Literal["positive", "negative"]
 POLARITIES: tuple[str, ...] = ("positive", "negative")
@@ -34,16 +37,23 @@ class TargetSpec:
 
     def __post_init__(self) -> None:
         for name in ("bar_width", "bar_height", "margin"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"TargetSpec.{name} must be a finite number (m), got {value!r}")
-            if value < 0 or (value == 0 and name != "margin"):
-                raise ValueError(f"TargetSpec.{name} must be positive (m), got {value!r}")
+            check_number(f"TargetSpec.{name}", getattr(self, name), low=0.0, low_open=name != "margin", unit="m")
 
     @classmethod
     def from_bar_width(cls, bar_width: float) -> "TargetSpec":
         """The thesis proportions (H = 2b, s = b/2) scaled to ``bar_width`` (m)."""
         return cls(bar_width=bar_width, bar_height=2.0 * bar_width, margin=0.5 * bar_width)
+
+    @functools.cached_property
+    def constants(self) -> TargetConstants:
+        """``(bar_width, bar_height, margin)`` (m) as the compiled kernels take them (computed once)."""
+        return TargetConstants(float(self.bar_width), float(self.bar_height), float(self.margin))
+
+    @functools.cached_property
+    def constants_record(self):
+        """:attr:`constants` as a ``(1,)`` record array, the form of the per-frame kernels'
+        arguments (computed once; do not change it)."""
+        return as_record(self.constants)
 
     @property
     def active_width(self) -> float:

@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 from localizer import Camera, TargetPose, TargetSpec, detect_targets
-from localizer.photometric import MARGIN_SHARE, MAX_LINES, REACH, _evaluate, _select
+from localizer._kernels.photometric import evaluate, select
+from localizer._kernels.records import Intrinsics, TargetConstants
+from localizer.photometric import MARGIN_SHARE, MAX_LINES, REACH
 from localizer.synthetic import in_envelope, render_frame
 
 DEG = math.pi / 180
@@ -36,22 +38,23 @@ def test_jacobian_matches_finite_differences(rng):
     c = pose.centre
     for positive in (True, False):
         p = np.array([c[0], c[2], pose.alpha, c[1], 20.0, 230.0, 0.6])
-        ucols, pci, pr = _select(p, img.shape[0], img.shape[1], cam.fx, cam.fy, cam.cx, cam.cy, T.bar_width,
-                                 T.bar_height, T.margin, MARGIN_SHARE, REACH, MAX_LINES)
-        obs = img[pr, ucols[pci]].astype(float)
-        args = (obs, ucols, pci, pr, cam.fx, cam.fy, cam.cx, cam.cy, T.bar_width, T.bar_height, positive)
+        intr = Intrinsics(cam.fx, cam.fy, cam.cx, cam.cy)
+        tc = TargetConstants(T.bar_width, T.bar_height, T.margin)
+        sel = select(p, img.shape, intr, tc, MARGIN_SHARE, REACH, MAX_LINES)
+        obs = img[sel.pr, sel.ucols[sel.pci]].astype(float)
+        args = (obs, sel, intr, tc, positive)
         n = obs.size
         res = np.empty(n)
         J = np.empty((n, 7))
-        _evaluate(p, *args, res, J, True)
+        evaluate(p, *args, res, J, True)
         steps = [1e-6 * p[1], 1e-6 * p[1], 1e-6, 1e-6 * p[1], 1e-4, 1e-4, 1e-6]
         for k, h in enumerate(steps):
             rp, rm = np.empty(n), np.empty(n)
             qp, qm = p.copy(), p.copy()
             qp[k] += h
             qm[k] -= h
-            _evaluate(qp, *args, rp, J.copy(), False)
-            _evaluate(qm, *args, rm, J.copy(), False)
+            evaluate(qp, *args, rp, J.copy(), False)
+            evaluate(qm, *args, rm, J.copy(), False)
             fd = (rp - rm) / (2 * h)
             # the model is piecewise smooth (box pixels): compare where both agree on smoothness
             assert np.median(np.abs(J[:, k] - fd)) <= 1e-4 * np.abs(fd).max()

@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from localizer import TargetPose
-from localizer.synthetic import _quad_coverage, in_envelope, render_reflectance, target_outline
+from localizer.synthetic import quad_coverage, in_envelope, render_reflectance, target_outline
 
 
-def test_quad_coverage_is_exact_area():
+def testquad_coverage_is_exact_area():
     # trapezoid with vertical sides at x = 10.3 and 30.7, slanted top and bottom
     xl, xr, ytl, ytr, ybl, ybr = 10.3, 30.7, 5.2, 8.9, 40.1, 36.6
-    r0, c0, cov = _quad_coverage(60, 60, xl, xr, ytl, ytr, ybl, ybr)
+    r0, c0, cov = quad_coverage(60, 60, xl, xr, ytl, ytr, ybl, ybr)
     area = (xr - xl) * ((ybl - ytl) + (ybr - ytr)) / 2
     assert cov.sum() == pytest.approx(area, rel=1e-4)
     # column 20 (fully inside in x) sums to the exact local height

@@ -1,0 +1,39 @@
+"""The one set of numba compilation flags of the localizer's kernels.
+
+Every compiled kernel of :mod:`localizer` is decorated with :data:`jit`::
+
+    from localizer._jit import jit
+
+    @jit
+    def kernel(image, ...):
+        ...
+
+The flags, in one place:
+
+* ``nopython`` (what ``numba.njit`` means): no fallback to the Python interpreter;
+* ``cache=True``: machine code is written to ``__pycache__`` beside the module on the
+  first call in a fresh environment (a few seconds per kernel) and loaded from there
+  afterwards (tens of milliseconds for the whole detector);
+* ``nogil=True``: the kernels release the GIL, so that detectors on several camera
+  threads run in parallel.
+
+Nothing else (``fastmath``, ``parallel``, ``error_model``) is set: the results are those
+of IEEE double arithmetic in the order the source is written, and a float division by
+zero raises ``ZeroDivisionError`` as in Python.
+
+:data:`inline` is the same with ``inline="always"``: for the few-line helpers called in
+the innermost loops (the edge projection, the blurred step, the pivoting step of the
+small solves), numba inserts their body into the caller before compiling it, as if
+written there (the arithmetic and its order are unchanged; a call per pixel and a
+loop over a matrix size known only at run time would cost several per cent).
+"""
+from __future__ import annotations
+
+import numba
+
+__all__ = ["inline", "jit"]
+
+#: the decorator of every compiled kernel (module docstring)
+jit = numba.njit(cache=True, nogil=True)
+#: the decorator of the small helpers inlined into their callers (module docstring)
+inline = numba.njit(cache=True, nogil=True, inline="always")

@@ -1,0 +1,76 @@
+"""The per-target path of ``detect_targets`` for an undistorted camera, fused in one call.
+
+Subpixel edges (:func:`localizer._kernels.subpixel.subpixel`), the target test
+(:func:`localizer._kernels.target_test.makes_target`) and the exact pose fit
+(:func:`localizer._kernels.exact_pose.fit`) of one verified stack: Python between
+these steps cost as much as the steps.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from localizer._jit import jit
+from localizer._kernels.exact_pose import fit
+from localizer._kernels.records import EXACT_RESULT, FitStatus, Intrinsics, TargetConstants
+from localizer._kernels.subpixel import edge_rows, subpixel
+from localizer._kernels.target_test import makes_target
+
+
+@jit
+def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, settings):
+    """:func:`localizer.exact_pose.exact_measure`'s compiled body.
+
+    Args:
+        image: ``(H, W)`` uint8 frame.
+        stack_rows: ``(n,)`` int64 rows of the verified stack.
+        bounds: ``(4,)`` float median run boundaries of the stack (columns).
+        ends: ``((top1, bottom1), (top2, bottom2))`` rough bar ends (rows).
+        positive: target polarity (black bars on white).
+        camera: ``(1,)`` :data:`~localizer._kernels.records.INTRINSICS` record (px).
+        target: ``(1,)`` :data:`~localizer._kernels.records.TARGET_CONSTANTS` record (m).
+        settings: ``(1,)`` :data:`~localizer._kernels.records.EXACT_SETTINGS` record.
+
+    Returns a ``(1,)`` :data:`~localizer._kernels.records.EXACT_RESULT` record: ``found``
+    False when the edges do not make a target or no fit converged (the pose is then zeros
+    and the covariance the identity); the edges (px) in either case.
+    """
+    c, t, st = camera[0], target[0], settings[0]
+    cam = Intrinsics(c.fx, c.fy, c.cx, c.cy)
+    tc = TargetConstants(t.bar_width, t.bar_height, t.margin)
+    e = np.empty((2, 2), np.int64)
+    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
+    rows = edge_rows(stack_rows)
+    m, _, _, _ = subpixel(image, rows, bounds, e, positive)
+    edges, top, bot = m.edges, m.top, m.bottom
+    out = np.zeros(1, EXACT_RESULT)
+    r = out[0]
+    r.edge0, r.edge1, r.edge2, r.edge3 = edges[0], edges[1], edges[2], edges[3]
+    r.bar_cx1, r.bar_cx2 = m.bar_cx[0], m.bar_cx[1]
+    r.top1, r.top2, r.bottom1, r.bottom2 = top[0], top[1], bot[0], bot[1]
+    for k in range(3):
+        r.cov[k, k] = 1.0
+    if not makes_target(edges[0], edges[1], edges[2], edges[3], bot[0] - top[0], bot[1] - top[1],
+                        st.width_tolerance, st.width_slack, st.min_rows):
+        return out
+    f = fit(m, cam, tc, positive, st.sigma_floor, st.iterations)
+    if f.status != FitStatus.FITTED:
+        return out
+    p = f.p
+    r.found = True
+    r.distance = math.hypot(p[0], p[1])
+    r.beta = math.atan2(p[0], p[1])
+    r.alpha = p[2]
+    r.z = p[1]
+    r.x = p[0]
+    r.height = p[3]
+    r.edge_bias = p[4]
+    r.alpha1 = f.alpha1
+    r.alpha2 = f.alpha2
+    r.n_solutions = f.n_solutions
+    r.chi2 = f.chi2
+    for i in range(3):
+        for j in range(3):
+            r.cov[i, j] = f.cov[i, j]
+    return out

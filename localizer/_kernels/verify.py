@@ -1,0 +1,166 @@
+"""Kernels of the pattern verification (thesis §4.5.2) of one stack, and the rough bar ends.
+
+A *stack* is consecutive image rows each holding a matching bar-gap-bar triple
+(:class:`localizer.recognize.Stack`); verification checks its height, aspect ratio,
+grey levels and margins.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from localizer._jit import jit
+from localizer._kernels.records import Reject, Verification
+
+
+@jit
+def verify(image, rows, xb, positive, s):
+    """Pattern verification (§4.5.2) of the stack on ``rows`` (n,) with median run boundaries
+    ``xb`` (4,): (1) minimum height (``min_rows``) and aspect ratio (rows spanned / width
+    within ``aspect_lo .. aspect_hi``); (2) uniform grey within each segment (spread of
+    non-boundary pixels, ``3.3 sd`` as a robust range, at most ``uniformity``; boundary = up
+    to 2 px at each end, the thesis's 5-pixel edge transition) and contrast between adjacent
+    segments (:func:`verify_grey`); (3) connectivity is built into the stack. Also, with
+    ``s.check_margins``: the blank margin above and below each bar.
+
+    Args: ``image`` (H, W) uint8; ``rows`` (n,) int64 image rows of the stack, increasing;
+    ``xb`` (4,) float columns; ``positive``: black bars on white; ``s``: the
+    :class:`~localizer._kernels.records.SearchSettings` (its record) (``min_rows``, ``aspect_lo``,
+    ``aspect_hi``, ``uniformity``, ``min_contrast``, ``min_contrast_ratio``,
+    ``height_term``, ``check_margins``).
+    Returns a :class:`~localizer._kernels.records.Verification` (``reason`` is
+    ``Reject.NONE`` when verified)."""
+    r0, r1 = rows[0], rows[rows.size - 1]
+    nr = r1 - r0 + 1
+    if nr < s.min_rows:
+        return Verification(Reject.MIN_ROWS, 0.0, 0.0, 0, 0, 0, 0)
+    ratio = nr / (xb[3] - xb[0])
+    if not (s.aspect_lo <= ratio <= s.aspect_hi):
+        return Verification(Reject.ASPECT_RATIO, 0.0, 0.0, 0, 0, 0, 0)
+    e = max(1, nr // 8)  # skip rows near the bar ends (blur, slanted tops)
+    ra, rb = r0 + e, r1 + 1 - e
+    if rb - ra < 2:
+        return Verification(Reject.MIN_ROWS, 0.0, 0.0, 0, 0, 0, 0)
+    return verify_grey(image, (r0, r1), (ra, rb), xb, positive, s)
+
+
+@jit
+def verify_grey(image, span, sample, xb, positive, s):
+    """The grey-level part of :func:`verify` for the stack on rows ``span = (r0, r1)``
+    (first, last) with median run boundaries ``xb`` (4,) (columns), its segments sampled
+    on rows ``sample = (ra, rb)`` (``ra:rb``); ``s`` the
+    :class:`~localizer._kernels.records.SearchSettings` (its record).
+
+    Uniform segments (``3.3 sd`` of the non-boundary pixels at most ``uniformity``),
+    contrast between them, the rough bar ends (:func:`rough_ends`) at each bar's centre
+    column near the stack's ends, bar heights differing by at most ``height_term * h^2``
+    plus slack (``height_term = 2 (b / H) sin(max_alpha) / fy``), and (``check_margins``)
+    the blank margins above and below both bars. Returns a
+    :class:`~localizer._kernels.records.Verification`: ``Reject.NONE`` when passed, else
+    ``UNIFORMITY``, ``CONTRAST``, ``BAR_ENDS``, ``BAR_HEIGHTS``, ``OUT_OF_VIEW`` or ``MARGINS``.
+    """
+    r0, r1 = span
+    ra, rb = sample
+    nr = r1 - r0 + 1
+    uniformity, min_contrast, min_contrast_ratio = s.uniformity, s.min_contrast, s.min_contrast_ratio
+    height_term, check_margins = s.height_term, s.check_margins
+    h, w = image.shape
+    xi = np.empty(4, np.int64)
+    for k in range(4):
+        xi[k] = int(np.rint(xb[k]))
+    means = np.empty(3)
+    spread = 0.0
+    for s in range(3):
+        a, b = xi[s], xi[s + 1]
+        mm = min(2, (b - a - 1) // 2)
+        mu, sd = mean_sd(image, ra, rb, a + mm, b - mm)
+        means[s] = mu
+        spread = max(spread, 3.3 * sd)
+    if spread > uniformity:
+        return Verification(Reject.UNIFORMITY, 0.0, 0.0, 0, 0, 0, 0)
+    if positive:
+        dark, bright = 0.5 * (means[0] + means[2]), means[1]
+        c = min(means[1] - means[0], means[1] - means[2])
+    else:
+        dark, bright = means[1], 0.5 * (means[0] + means[2])
+        c = min(means[0] - means[1], means[2] - means[1])
+    need = min(min_contrast, min_contrast_ratio * bright)
+    if c < need or c <= 0:
+        return Verification(Reject.CONTRAST, dark, bright, 0, 0, 0, 0)
+    thr = 0.5 * (dark + bright)
+    t0, b0 = rough_ends(image, r0, r1, nr, min(max((xi[0] + xi[1]) // 2, 0), w - 1), thr, positive)
+    t1, b1 = rough_ends(image, r0, r1, nr, min(max((xi[2] + xi[3]) // 2, 0), w - 1), thr, positive)
+    # the stack ends where the shorter bar ends (a margin strip next to a bar, seen as a
+    # bar of the other polarity, runs on past both ends of the stack)
+    slack = 2 + 0.05 * nr
+    if min(r0 - t0, r0 - t1) > slack or min(b0 - r1, b1 - r1) > slack:
+        return Verification(Reject.BAR_ENDS, dark, bright, t0, b0, t1, b1)
+    # bar heights h1, h2 differ at most as the ranges of the bar centres do (|alpha| <= max_alpha):
+    # |h1 - h2| / h <= 2 b sin(max_alpha) / Z with Z = fy H / h (eq 4.3), plus 2 rows of slack
+    h0, h1 = b0 - t0 + 1, b1 - t1 + 1
+    hm = 0.5 * (h0 + h1)
+    if abs(h0 - h1) > height_term * hm * hm + 2.0 + 0.03 * hm:
+        return Verification(Reject.BAR_HEIGHTS, dark, bright, t0, b0, t1, b1)
+    if check_margins:
+        # blank margin above and below each bar (thesis §3.4: s = H/4 tall)
+        for k in range(2):
+            t, b = (t0, b0) if k == 0 else (t1, b1)
+            hb = b - t + 1
+            ka = max(2, int(np.rint(0.12 * hb)))
+            kb = max(ka, int(np.rint(0.17 * hb)))
+            if t - kb < 0 or b + kb >= h:
+                return Verification(Reject.OUT_OF_VIEW, dark, bright, t0, b0, t1, b1)
+            a, bb = xi[2 * k], xi[2 * k + 1]
+            for ya, yb in ((t - kb, t - ka + 1), (b + ka, b + kb + 1)):
+                if count_shade(image, ya, yb, a, bb, thr, positive) < 0.75 * (yb - ya) * max(bb - a, 0):
+                    return Verification(Reject.MARGINS, dark, bright, t0, b0, t1, b1)
+    return Verification(Reject.NONE, dark, bright, t0, b0, t1, b1)
+
+
+@jit
+def rough_ends(image, r0, r1, nr, col, thr, positive):
+    """First and last row of the bar crossing rows ``r0..r1`` at column ``col``: walk
+    up and down (at most ``nr`` rows) from the stack while the pixel keeps the bar's shade
+    (``< thr`` for positive targets). Returns ``(top, bottom)`` rows."""
+    h = image.shape[0]
+    lo = max(0, r0 - nr)
+    top = lo
+    for r in range(r0, lo - 1, -1):
+        if (image[r, col] < thr) != positive:  # the first pixel off the bar
+            top = r + 1
+            break
+    hi = min(h, r1 + nr + 1) - 1
+    bot = hi
+    for r in range(r1, hi + 1):
+        if (image[r, col] < thr) != positive:
+            bot = r - 1
+            break
+    return top, bot
+
+
+@jit
+def mean_sd(image, r0, r1, c0, c1):
+    """Mean and (population) standard deviation of ``image[r0:r1, c0:c1]`` (grey levels)."""
+    s = 0
+    ss = 0
+    for r in range(r0, r1):
+        seg = image[r, c0:c1]
+        for c in range(seg.size):  # integer sums over a slice, so that it vectorises
+            v = np.int32(seg[c])
+            s += v
+            ss += v * v
+    n = max((r1 - r0) * (c1 - c0), 1)
+    mu = s / n
+    return mu, math.sqrt(max(ss / n - mu * mu, 0.0))
+
+
+@jit
+def count_shade(image, r0, r1, c0, c1, thr, light):
+    """Pixels of ``image[r0:r1, c0:c1]`` that are ``>= thr`` (``light``) or ``< thr``."""
+    n = 0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            if (image[r, c] >= thr) == light:
+                n += 1
+    return n
