@@ -9,7 +9,7 @@ Public API::
     TargetSpec()                                  # thesis target, metres
     detect_targets(image, camera, target=TargetSpec(), method="exact", **params)
         -> list[TargetObservation]                # SI units, thesis angle conventions
-    DetectorParams, DetectionStats, TargetPose, annotate
+    DetectorParams, DetectionStats, TargetPose, CameraMount, annotate
     localizer.synthetic                          # exact synthetic frames for tests/benches
     localizer.thesis_points                      # the thesis's test points (Tables 5.1-5.4)
 
@@ -20,15 +20,38 @@ Modules, in pipeline order: :mod:`localizer.scan` (scan lines), :mod:`localizer.
 :mod:`localizer.photometric`, :mod:`localizer.detect`. Compiled kernels:
 :mod:`localizer._kernels` (flags: :mod:`localizer._jit`).
 """
-from localizer.annotate import annotate
-from localizer.camera import Camera
-from localizer.detect import detect_targets
-from localizer.geometry import TargetPose
-from localizer.observation import ImageMeasurements, TargetObservation
-from localizer.params import METHODS, DetectionStats, DetectorParams
-from localizer.target import POLARITIES, TargetSpec
+from __future__ import annotations
 
-__all__ = [
-    "Camera", "DetectionStats", "DetectorParams", "ImageMeasurements", "METHODS", "POLARITIES",
-    "TargetObservation", "TargetPose", "TargetSpec", "annotate", "detect_targets",
-]
+import importlib
+from typing import Any
+
+#: public name -> module that defines it. Loaded on first use (PEP 562), so importing a
+#: light module such as :mod:`localizer.numeric` or :mod:`localizer.mount` does not load
+#: numba and the compiled kernels.
+_LAZY = {
+    "annotate": "localizer.annotate",
+    "Camera": "localizer.camera",
+    "CameraMount": "localizer.mount",
+    "detect_targets": "localizer.detect",
+    "TargetPose": "localizer.geometry",
+    "ImageMeasurements": "localizer.observation",
+    "TargetObservation": "localizer.observation",
+    "METHODS": "localizer.params",
+    "DetectionStats": "localizer.params",
+    "DetectorParams": "localizer.params",
+    "POLARITIES": "localizer.target",
+    "TargetSpec": "localizer.target",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'localizer' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
