@@ -29,7 +29,7 @@ from typing import Any
 #: light module such as :mod:`localizer.numeric` or :mod:`localizer.mount` does not load
 #: numba and the compiled kernels.
 _LAZY = {
-    "annotate": "localizer.annotate",
+    "annotate": "localizer.annotation",
     "Camera": "localizer.camera",
     "CameraMount": "localizer.mount",
     "detect_targets": "localizer.detect",

@@ -113,7 +113,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     st.accepted += len(out)
     st.seconds += time.perf_counter() - t0
     if p.debug_dir:
-        from localizer.annotate import write_debug_images
+        from localizer.annotation import write_debug_images
 
         write_debug_images(p.debug_dir, img, camera, p, stacks, verified, out)
     return out
