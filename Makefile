@@ -19,8 +19,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/agvsim demo --out out/demo
 
+# -n auto: one pytest worker per core (pytest-xdist); each worker loads the localizer's
+# compiled kernels once (tests/conftest.py), compiling them on a fresh clone (~80 s of numba).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -p no:cacheprovider
+	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
