@@ -16,8 +16,7 @@ Layers (data flows one way; ``ARCHITECTURE.md``): :mod:`agvsim.world` (maps) →
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from localizer.lazy import lazy_exports
 
 #: public name -> module that defines it (imported lazily, PEP 562).
 _LAZY = {
@@ -54,14 +53,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 
-
-def __getattr__(name: str) -> Any:
-    target = _LAZY.get(name)
-    if target is None:
-        raise AttributeError(f"module 'agvsim' has no attribute {name!r}")
-    module, _, attr = target.partition(":")
-    return getattr(importlib.import_module(module), attr or name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -22,8 +22,7 @@ Modules, in pipeline order: :mod:`localizer.scan` (scan lines), :mod:`localizer.
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from localizer.lazy import lazy_exports
 
 #: public name -> module that defines it. Loaded on first use (PEP 562), so importing a
 #: light module such as :mod:`localizer.numeric` or :mod:`localizer.mount` does not load
@@ -45,13 +44,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'localizer' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

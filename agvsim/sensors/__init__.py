@@ -11,8 +11,7 @@ Importing this package opens no OpenGL context and imports no source module.
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from localizer.lazy import lazy_exports
 
 from agvsim.sensors.registry import SOURCES, make_source, source_class
 
@@ -31,13 +30,4 @@ _LAZY = {
 
 __all__ = sorted([*_LAZY, "SOURCES", "make_source", "source_class"])
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'agvsim.sensors' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

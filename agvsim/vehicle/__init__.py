@@ -9,8 +9,7 @@ control rate. Names load on first use (no pymunk at ``import agvsim.vehicle``).
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from localizer.lazy import lazy_exports
 
 _LAZY = {
     "DiffDriveVehicle": "agvsim.vehicle.dynamics",
@@ -27,13 +26,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'agvsim.vehicle' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

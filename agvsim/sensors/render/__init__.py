@@ -16,8 +16,7 @@ Modules: ``gl`` (headless platform), ``textures``, ``scene``, ``lighting``,
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from localizer.lazy import lazy_exports
 
 _LAZY = {
     "CameraRenderer": "agvsim.sensors.render.renderer",
@@ -38,13 +37,4 @@ _LAZY = {
 
 __all__ = sorted(_LAZY)
 
-
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'agvsim.sensors.render' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
