@@ -167,6 +167,7 @@ def run_mounts(args: argparse.Namespace) -> int:
     from localizer.numeric import check_number
 
     check_number("--top", args.top, low=1, integer=True)
+    check_number("--step", args.step, low=0.0, low_open=True, unit="m")
     try:
         world = load_map(args.map)
     except (MapError, FileNotFoundError) as exc:
