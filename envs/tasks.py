@@ -83,7 +83,7 @@ class GotoTask(Task):
         return gain
 
     def is_terminal(self, loop) -> bool:
-        return self._previous <= self.config.goal_radius
+        return self.goal_distance(loop) <= self.config.goal_radius
 
 
 class LocalizeTask(Task):

@@ -21,7 +21,7 @@ from typing import Iterable
 import numpy as np
 
 from agvsim.loop.pure_pursuit import RoutePath
-from agvsim.sensors.vision import VisionConfig, visible_targets
+from agvsim.sensors.vision import VisionConfig, targets_from_map, visible_targets
 from localizer.mount import CameraMount
 from localizer.numeric import check_number
 
@@ -87,12 +87,13 @@ def scan_mounts(world_map, mounts: Iterable[CameraMount], route: str = "default"
     """
     step = check_number("scan_mounts step", step, low=0.0, low_open=True, unit="m")
     poses = _samples(RoutePath.from_route(world_map, route), step)
+    targets = targets_from_map(world_map)
     results = []
     for mount in mounts:
         v = replace(vision, mount=mount)
         counts, seen = [], set()
         for pose in poses:
-            vis = visible_targets(world_map, v, pose)
+            vis = visible_targets(world_map, v, pose, targets)
             counts.append(len(vis))
             seen.update(i for i, _ in vis)
         blind = np.asarray(counts) == 0

@@ -6,16 +6,6 @@ import argparse
 from agvsim.commands._output import add_json_flag, emit_json
 
 
-def __getattr__(name: str):
-    """``THESIS_POINTS``: the thesis's test points, which live in :mod:`localizer.thesis_points`
-    (imported on first use: registering the command imports nothing heavy)."""
-    if name == "THESIS_POINTS":
-        from localizer.thesis_points import THESIS_POINTS
-
-        return THESIS_POINTS
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 def register(sub) -> None:
     p = sub.add_parser("reproduce", help="reproduce a published result",
                        description="Reproduce a published result on synthetic frames.")
@@ -27,13 +17,6 @@ def register(sub) -> None:
                    help="target centre this many pixels right of the principal point (default 40)")
     add_json_flag(p)
     p.set_defaults(func=run)
-
-
-def reproduce_thesis(seed: int = 0, noise: float = 1.0, blur: float = 0.5, column: float = 40.0) -> dict:
-    """:func:`localizer.thesis_points.reproduce_thesis`."""
-    from localizer.thesis_points import reproduce_thesis as reproduce
-
-    return reproduce(seed, noise, blur, column)
 
 
 def format_table(res: dict) -> str:
@@ -65,6 +48,8 @@ def format_table(res: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from localizer.thesis_points import reproduce_thesis
+
     res = reproduce_thesis(args.seed, args.noise, args.blur, args.column)
     if args.json:
         emit_json(res)

@@ -13,7 +13,7 @@ from typing import ClassVar
 import numpy as np
 
 from agvsim.sensors.base import SimObservation
-from agvsim.sensors.vision import VisionConfig, visible_targets
+from agvsim.sensors.vision import VisionConfig, targets_from_map, visible_targets
 from localizer.numeric import check_number, check_numbers
 
 __all__ = ["GeometricNoise", "GeometricSource"]
@@ -74,6 +74,7 @@ class GeometricSource:
                  noise: GeometricNoise = GeometricNoise()) -> None:
         self.map = world_map
         self.vision = (vision or VisionConfig()).for_map(world_map)
+        self._targets = targets_from_map(world_map)
         self.noise = noise
         self.last_frame: np.ndarray | None = None
 
@@ -84,7 +85,7 @@ class GeometricSource:
                 command: tuple[float, float] = (0.0, 0.0)) -> list[SimObservation]:
         out = []
         nz = self.noise
-        for i, pose in visible_targets(self.map, self.vision, true_pose):
+        for i, pose in visible_targets(self.map, self.vision, true_pose, self._targets):
             if nz.detection_probability < 1.0 and rng.random() >= nz.detection_probability:
                 continue
             C = nz.covariance(pose.distance)

@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from agvsim.sensors.base import SimObservation
-from agvsim.sensors.vision import VisionConfig, match_truth, visible_targets
+from agvsim.sensors.vision import VisionConfig, targets_from_map, match_truth, visible_targets
 from localizer.numeric import check_number
 
 __all__ = ["SyntheticFrameSource"]
@@ -36,6 +36,7 @@ class SyntheticFrameSource:
                  noise: float = 2.0, gain: float = 235.0, flare: float = 5.0) -> None:
         self.map = world_map
         self.vision = (vision or VisionConfig()).for_map(world_map)
+        self._targets = targets_from_map(world_map)
         self.exposure = 1.0
         self.blur = blur
         self.noise = noise
@@ -53,7 +54,7 @@ class SyntheticFrameSource:
         from localizer import detect_targets
         from localizer.synthetic import Lighting, render_frame
 
-        visible = visible_targets(self.map, self.vision, true_pose)
+        visible = visible_targets(self.map, self.vision, true_pose, self._targets)
         lens, _ = self.vision.mount.camera_pose(true_pose)
         level = self.map.lighting_at(float(lens[0]), float(lens[1]))
         level *= self.exposure

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -62,11 +63,12 @@ class VisionConfig:
             return self
         return replace(self, mount=world_map.camera_mount)
 
-    @property
+    @cached_property
     def camera(self) -> Camera:
+        """The thesis camera with this lens (built once per configuration)."""
         return Camera.thesis(self.focal_mm)
 
-    @property
+    @cached_property
     def half_fov(self) -> float:
         """Half the horizontal field of view (rad)."""
         cam = self.camera
@@ -85,17 +87,19 @@ def targets_from_map(world_map) -> TargetMap:
                      np.array([t.yaw for t in ts]), tuple(t.polarity for t in ts))
 
 
-def visible_targets(world_map, vision: VisionConfig, true_pose) -> list[tuple[int, TargetPose]]:
+def visible_targets(world_map, vision: VisionConfig, true_pose,
+                    targets: TargetMap | None = None) -> list[tuple[int, TargetPose]]:
     """(index into ``world_map.targets``, true camera-frame pose) of every target the camera can see.
 
-    ``vision`` must carry a mount (:meth:`VisionConfig.for_map`).
+    ``vision`` must carry a mount (:meth:`VisionConfig.for_map`); ``targets``: the map's
+    :func:`targets_from_map`, if already made (sources make it once, not per frame).
     """
-    tm = targets_from_map(world_map)
+    tm = targets if targets is not None else targets_from_map(world_map)
     if len(tm) == 0:
         return []
     mount = vision.mount
     cam = vision.camera
-    limits = ViewLimits(half_fov=math.atan(0.5 * cam.width / cam.fx), min_range=0.3,
+    limits = ViewLimits(half_fov=vision.half_fov, min_range=0.3,
                         max_range=vision.max_range, max_incidence=vision.max_incidence, margin=0.0)
     Z, ok = predict_all(np.asarray(true_pose, dtype=float), tm, mount, limits)
     if not ok.any():
