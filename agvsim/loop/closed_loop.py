@@ -209,8 +209,6 @@ class ClosedLoop:
         self.steps = 0
         self._in_flight: deque = deque()  # (ready, capture time, step, observations, observe_ms, yaw rate)
         self.timings = {"sim": 0.0, "observe": 0.0, "filter": 0.0}  # wall seconds
-        self.accepted_total = 0
-        self.rejected_total = 0
 
     # -- poses -----------------------------------------------------------------
     @property
@@ -291,10 +289,7 @@ class ClosedLoop:
         self.steps += 1
         half = 0.5 * self.config.sim.vehicle.track_width
         wheels = ((result.ds - result.dtheta * half) / dt, (result.ds + result.dtheta * half) / dt)
-        step = LoopStep(result, captured, tuple(fused), wheels)
-        self.accepted_total += step.accepted
-        self.rejected_total += step.rejected
-        return step
+        return LoopStep(result, captured, tuple(fused), wheels)
 
     def _fuse(self, item, now: float) -> FusedFrame:
         _, t_cap, step, obs, obs_ms, yaw_rate = item
