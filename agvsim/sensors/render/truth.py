@@ -12,17 +12,23 @@ printed face (margin included) projects inside the image, and the depth
 buffer shows nothing in front of it at any of a grid of points on the face.
 ``in_envelope`` adds the localizer's working envelope (bars >= 5 px wide and
 >= 16 rows tall, |α| <= 70°).
+
+:func:`frame_truth` works on all targets at once: :class:`TruthGeometry` holds a
+map's target centres, normals and the target-frame ``(u, v)`` of every point
+it projects (built once per map and cached), so a frame costs a handful of
+NumPy operations on ``(n_targets, 51)`` arrays whatever the number of targets.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import weakref
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from localizer.camera import Camera
 from localizer.geometry import TargetPose
-from agvsim.sensors.render.mount import CameraPose
+from agvsim.sensors.render.mount import CameraPose, level_rotation
 
 OCCLUSION_GRID = (7, 5)  # sample points across x down the printed face
 MIN_BAR_PX = 5.0
@@ -123,9 +129,10 @@ class FrameTruth:
 
 
 def level_target_pose(target, cam_pose: CameraPose) -> tuple[TargetPose | None, bool]:
-    """The target's pose in the level camera frame (localizer conventions) and whether it faces the lens.
+    """One target's pose in the level camera frame (localizer conventions) and whether it faces the lens.
 
     Returns ``(None, facing)`` when the target centre is at the lens (degenerate).
+    (:func:`frame_truth` computes the same for all targets at once.)
     """
     centre = target.center_3d
     p = cam_pose.to_level_camera(centre)  # (X right, Y down, Z forward)
@@ -141,8 +148,66 @@ def level_target_pose(target, cam_pose: CameraPose) -> tuple[TargetPose | None, 
     return TargetPose(distance=d, beta=beta, alpha=alpha, height=float(p[1])), facing
 
 
+# columns of TruthGeometry.u / .v: the points projected for each target
+ACTIVE, OUTER, EDGES_TOP, EDGES_BOTTOM = slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 16)
+GRID = slice(16, 16 + OCCLUSION_GRID[0] * OCCLUSION_GRID[1])  # the occlusion test's face points
+N_POINTS = GRID.stop  # 51
+
+
+class TruthGeometry:
+    """A map's targets as arrays, for :func:`frame_truth` (build once per map; :meth:`of` caches it).
+
+    Attributes:
+        targets: the map's targets, in map order (n of them).
+        centres: ``(n, 3)`` face centres in the map (m).
+        normals: ``(n, 3)`` unit face normals, ``z = 0``.
+        u, v: ``(n, 51)`` target coordinates (m, ``u`` right, ``v`` down, origin at the centre) of
+            the points projected per frame: active-area corners TL, TR, BR, BL (columns 0-3),
+            printed-face corners (4-7), the four bar edges' tops (8-11) and bottoms (12-15), and
+            the 7 x 5 occlusion grid over 90 % of the printed face (16-50, row-major).
+    """
+
+    def __init__(self, targets) -> None:
+        self.targets = tuple(targets)
+        n = len(self.targets)
+        self.centres = np.array([t.center_3d for t in self.targets], dtype=float).reshape(n, 3)
+        self.normals = np.array([[t.normal[0], t.normal[1], 0.0] for t in self.targets], dtype=float).reshape(n, 3)
+        self.u = np.empty((n, N_POINTS))
+        self.v = np.empty((n, N_POINTS))
+        nx, ny = OCCLUSION_GRID
+        for i, t in enumerate(self.targets):
+            spec = t.spec
+            b, hh = spec.bar_width, spec.bar_height / 2
+            uo, vo = spec.outer_width / 2, spec.outer_height / 2
+            edges = np.array([-1.5, -0.5, 0.5, 1.5]) * b
+            gu, gv = spec.outer_width / 2 * 0.9, spec.outer_height / 2 * 0.9
+            uu, vv = np.meshgrid(np.linspace(-gu, gu, nx), np.linspace(-gv, gv, ny))
+            self.u[i] = np.concatenate([[-1.5 * b, 1.5 * b, 1.5 * b, -1.5 * b], [-uo, uo, uo, -uo], edges, edges,
+                                        uu.ravel()])
+            self.v[i] = np.concatenate([[-hh, -hh, hh, hh], [-vo, -vo, vo, vo], np.full(4, -hh), np.full(4, hh),
+                                        vv.ravel()])
+        # per-target constants of the TargetTruth records
+        self._static = [{"id": t.id, "polarity": t.polarity} for t in self.targets]
+
+    @classmethod
+    def of(cls, world_map) -> "TruthGeometry":
+        """The (cached) geometry of ``world_map``'s targets."""
+        g = _CACHE.get(world_map)
+        if g is None:
+            g = _CACHE[world_map] = cls(world_map.targets)
+        return g
+
+
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+# TargetTruth's fields after id, polarity, in declaration order (the order frame_truth's columns come in)
+_FIELDS = ("visible", "in_view", "facing", "occluded_fraction", "in_envelope", "distance", "alpha", "beta", "z",
+           "height", "corners", "bbox", "bar_width_px", "bar_rows")
+assert ("id", "polarity") + _FIELDS == tuple(f.name for f in fields(TargetTruth))
+
+
 def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, depth: np.ndarray | None,
-                supersample: int = 1, distorted: bool = False, lighting: float | None = None) -> FrameTruth:
+                supersample: int = 1, distorted: bool = False, lighting: float | None = None,
+                geometry: TruthGeometry | None = None) -> FrameTruth:
     """Ground truth of every target of ``world_map`` seen from ``cam_pose``.
 
     Args:
@@ -152,79 +217,90 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
         depth: ``(H * s, W * s)`` float depth buffer (m along the optical axis, 0 = nothing),
             rendered with ``supersample`` s; None skips the occlusion test.
         distorted: report corners/bbox through ``camera.dist`` (the image was distorted).
+        geometry: ``world_map``'s :class:`TruthGeometry` (default: :meth:`TruthGeometry.of`).
+    Returns:
+        one :class:`TargetTruth` per map target, in map order (a target whose centre is at
+        the lens is left out).
     """
-    jit = cam_pose.rotation.T @ _level(cam_pose)  # level -> actual camera frame
+    g = geometry if geometry is not None else TruthGeometry.of(world_map)
+    n = len(g.targets)
+    level = level_rotation(cam_pose.heading)
+    jit = cam_pose.rotation.T @ level  # level -> actual camera frame
+    pos = np.asarray(cam_pose.position, dtype=float)
+    # level-frame pose of every target (as level_target_pose)
+    p = (g.centres - pos) @ level  # (n, 3) m
+    n_cam = ((pos + g.normals) - pos) @ level
+    rel = pos[:2] - g.centres[:, :2]
+    facing = g.normals[:, 0] * rel[:, 0] + g.normals[:, 1] * rel[:, 1] > 0.0
+    d = np.hypot(p[:, 0], p[:, 2])
+    beta = np.arctan2(p[:, 0], p[:, 2])
+    alpha = np.arctan2(-n_cam[:, 0], -n_cam[:, 2])
+    height = p[:, 1]
+    cx, cz = d * np.sin(beta), d * np.cos(beta)  # TargetPose.centre (x, z), cz == TargetPose.z
+    # every point of every target, level -> actual camera frame: (n, 51, 3) m
+    ca, sa = np.cos(alpha)[:, None], np.sin(alpha)[:, None]
+    pts = np.stack([cx[:, None] + g.u * ca, height[:, None] + g.v,
+                    cz[:, None] - g.u * sa], axis=-1) @ jit.T
+    in_front = np.all(pts[:, OUTER, 2] > NEAR, axis=1)
+    corners = np.full((n, 4, 2), np.nan)
+    bbox = np.full((n, 4), np.nan)
+    in_view = np.zeros(n, dtype=bool)
+    occluded = np.zeros(n)
+    bar_w = np.zeros(n)
+    bar_rows = np.zeros(n)
+    f = np.flatnonzero(in_front)
+    if len(f):
+        q = pts[f]  # (m, 51, 3), all in front of the lens (the points lie inside the printed face)
+        ideal = np.stack([camera.cx + camera.fx * (q[..., 0] / q[..., 2]),
+                          camera.cy + camera.fy * (q[..., 1] / q[..., 2])], axis=-1)  # (m, 51, 2) px
+        px = camera.project(q[:, :GRID.start]) if distorted and camera.dist else ideal[:, :GRID.start]
+        corners[f] = px[:, ACTIVE]
+        outer = px[:, OUTER]
+        box = np.concatenate([outer.min(axis=1), outer.max(axis=1)], axis=1)  # (m, 4): x0, y0, x1, y1
+        bbox[f] = box
+        iv = ((box[:, 0] >= -0.5) & (box[:, 1] >= -0.5) & (box[:, 2] <= camera.width - 0.5)
+              & (box[:, 3] <= camera.height - 0.5))
+        in_view[f] = iv
+        et, eb = px[:, EDGES_TOP], px[:, EDGES_BOTTOM]
+        bar_w[f] = np.min(np.abs(np.diff(et[..., 0], axis=1)), axis=1)
+        bar_rows[f] = np.min(eb[..., 1] - et[..., 1], axis=1)
+        if depth is not None and iv.any():
+            k = np.flatnonzero(iv)
+            occluded[f[k]] = _occluded_fraction(ideal[k, GRID], q[k, GRID, 2], depth, supersample)
+    visible = facing & in_view & (occluded == 0.0)
+    in_env = visible & (bar_w >= MIN_BAR_PX) & (bar_rows >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
+    columns = zip(visible.tolist(), in_view.tolist(), facing.tolist(), occluded.tolist(), in_env.tolist(),
+                  d.tolist(), alpha.tolist(), beta.tolist(), cz.tolist(), height.tolist(), corners,
+                  map(tuple, bbox.tolist()), bar_w.tolist(), bar_rows.tolist())
+    keep = (d > 1e-9).tolist()
+    new = object.__new__
     out = []
-    for t in world_map.targets:
-        spec = t.spec
-        pose, facing = level_target_pose(t, cam_pose)
-        if pose is None:
-            continue
-        b, hh = spec.bar_width, spec.bar_height / 2
-        uo, vo = spec.outer_width / 2, spec.outer_height / 2
-        u = np.array([-1.5 * b, 1.5 * b, 1.5 * b, -1.5 * b])
-        v = np.array([-hh, -hh, hh, hh])
-        active = pose.points(u, v) @ jit.T
-        outer = pose.points(np.array([-uo, uo, uo, -uo]), np.array([-vo, -vo, vo, vo])) @ jit.T
-        edges_top = pose.points(np.array([-1.5, -0.5, 0.5, 1.5]) * b, -hh) @ jit.T
-        edges_bot = pose.points(np.array([-1.5, -0.5, 0.5, 1.5]) * b, hh) @ jit.T
-        in_front = bool(np.all(outer[:, 2] > NEAR))
-        corners = np.full((4, 2), np.nan)
-        bbox = (math.nan,) * 4
-        in_view = False
-        occluded = 0.0
-        bar_w = bar_rows = 0.0
-        if in_front:
-            proj = camera if distorted else _ideal(camera)
-            corners = proj.project(active)
-            outer_px = proj.project(outer)
-            bbox = (float(outer_px[:, 0].min()), float(outer_px[:, 1].min()),
-                    float(outer_px[:, 0].max()), float(outer_px[:, 1].max()))
-            in_view = bool(bbox[0] >= -0.5 and bbox[1] >= -0.5 and bbox[2] <= camera.width - 0.5
-                           and bbox[3] <= camera.height - 0.5)
-            et, eb = proj.project(edges_top), proj.project(edges_bot)
-            bar_w = float(np.min(np.abs(np.diff(et[:, 0]))))
-            bar_rows = float(min(eb[0, 1] - et[0, 1], eb[1, 1] - et[1, 1], eb[2, 1] - et[2, 1], eb[3, 1] - et[3, 1]))
-            if in_view and depth is not None:
-                occluded = _occluded_fraction(camera, pose, spec, jit, depth, supersample)
-        visible = bool(facing and in_view and occluded == 0.0)
-        in_env = bool(visible and bar_w >= MIN_BAR_PX and bar_rows >= MIN_ROWS and abs(pose.alpha) <= MAX_ALPHA)
-        out.append(TargetTruth(
-            id=t.id, polarity=t.polarity, visible=visible, in_view=in_view, facing=facing,
-            occluded_fraction=float(occluded), in_envelope=in_env, distance=pose.distance, alpha=pose.alpha,
-            beta=pose.beta, z=pose.z, height=pose.height, corners=corners, bbox=bbox,
-            bar_width_px=bar_w, bar_rows=bar_rows))
+    for static, ok, values in zip(g._static, keep, columns):
+        if ok:  # a frozen dataclass filled without its __init__'s per-field object.__setattr__
+            t = new(TargetTruth)
+            t.__dict__.update(static)
+            t.__dict__.update(zip(_FIELDS, values))
+            out.append(t)
     return FrameTruth(camera=camera, vehicle_pose=tuple(float(v) for v in vehicle_pose), camera_pose=cam_pose,
                       lighting=lighting, targets=tuple(out))
 
 
-def _level(cam_pose: CameraPose) -> np.ndarray:
-    from agvsim.sensors.render.mount import level_rotation
+def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersample: int) -> np.ndarray:
+    """Per target, the share of its face points behind something nearer in ``depth``.
 
-    return level_rotation(cam_pose.heading)
-
-
-def _ideal(camera: Camera) -> Camera:
-    return camera if not camera.dist else Camera(camera.fx, camera.fy, camera.cx, camera.cy, camera.width,
-                                                  camera.height)
-
-
-def _occluded_fraction(camera: Camera, pose: TargetPose, spec, jit: np.ndarray, depth: np.ndarray,
-                       supersample: int) -> float:
-    """Share of a grid of points on the printed face behind something nearer in ``depth``."""
-    nx, ny = OCCLUSION_GRID
-    uo, vo = spec.outer_width / 2 * 0.9, spec.outer_height / 2 * 0.9
-    uu, vv = np.meshgrid(np.linspace(-uo, uo, nx), np.linspace(-vo, vo, ny))
-    pts = pose.points(uu.ravel(), vv.ravel()) @ jit.T
-    px = _ideal(camera).project(pts)
+    Args:
+        px: ``(m, k, 2)`` undistorted pixel x, y of the face points; z: ``(m, k)`` their range (m).
+        depth: ``(H * s, W * s)`` depth buffer (m, 0 = nothing) rendered with ``supersample`` s.
+    Returns:
+        ``(m,)`` fractions in [0, 1]; 1 for a target none of whose points falls in the buffer.
+    """
     s = supersample
-    cols = np.floor((px[:, 0] + 0.5) * s).astype(int)
-    rows = np.floor((px[:, 1] + 0.5) * s).astype(int)
-    ok = (cols >= 0) & (cols < depth.shape[1]) & (rows >= 0) & (rows < depth.shape[0])
-    if not np.any(ok):
-        return 1.0
-    zbuf = depth[rows[ok], cols[ok]]
-    z = pts[ok, 2]
+    cols = np.floor((px[..., 0] + 0.5) * s).astype(int)
+    rows = np.floor((px[..., 1] + 0.5) * s).astype(int)
+    h, w = depth.shape
+    ok = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    zbuf = depth[np.where(ok, rows, 0), np.where(ok, cols, 0)]
     tol = 0.004 + 0.0005 * z
-    hidden = (zbuf > 0) & (zbuf < z - tol) | (zbuf == 0)
-    return float(np.mean(hidden))
+    hidden = ((zbuf > 0) & (zbuf < z - tol) | (zbuf == 0)) & ok
+    n_ok = ok.sum(axis=1)
+    return np.where(n_ok > 0, hidden.sum(axis=1) / np.maximum(n_ok, 1), 1.0)
