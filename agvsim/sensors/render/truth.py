@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -150,6 +150,7 @@ def level_target_pose(target, cam_pose: CameraPose) -> tuple[TargetPose | None, 
 
 # columns of TruthGeometry.u / .v: the points projected for each target
 ACTIVE, OUTER, EDGES_TOP, EDGES_BOTTOM = slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 16)
+IMAGE = slice(0, 16)  # the points whose image the truth reports (corners, bbox, bar sizes)
 GRID = slice(16, 16 + OCCLUSION_GRID[0] * OCCLUSION_GRID[1])  # the occlusion test's face points
 N_POINTS = GRID.stop  # 51
 
@@ -157,21 +158,30 @@ N_POINTS = GRID.stop  # 51
 class TruthGeometry:
     """A map's targets as arrays, for :func:`frame_truth` (build once per map; :meth:`of` caches it).
 
+    A face point at target coordinates ``(u, v)`` (m, ``u`` to the right as seen facing the
+    target, ``v`` down, origin at the centre) is at ``centre + u * across + v * (0, 0, -1)`` in
+    the map.
+
     Attributes:
         targets: the map's targets, in map order (n of them).
         centres: ``(n, 3)`` face centres in the map (m).
-        normals: ``(n, 3)`` unit face normals, ``z = 0``.
-        u, v: ``(n, 51)`` target coordinates (m, ``u`` right, ``v`` down, origin at the centre) of
-            the points projected per frame: active-area corners TL, TR, BR, BL (columns 0-3),
-            printed-face corners (4-7), the four bar edges' tops (8-11) and bottoms (12-15), and
-            the 7 x 5 occlusion grid over 90 % of the printed face (16-50, row-major).
+        normals: ``(n, 3)`` unit face normals (into free space), ``z = 0``.
+        across: ``(n, 3)`` unit direction of ``u`` in the map: ``(-normal_y, normal_x, 0)``.
+        u, v: ``(n, 51)`` target coordinates (m) of the points projected per frame: active-area
+            corners TL, TR, BR, BL (columns 0-3), printed-face corners (4-7), the four bar edges'
+            tops (8-11) and bottoms (12-15), and the 7 x 5 occlusion grid over 90 % of the
+            printed face (16-50, row-major).
     """
 
     def __init__(self, targets) -> None:
         self.targets = tuple(targets)
         n = len(self.targets)
         self.centres = np.array([t.center_3d for t in self.targets], dtype=float).reshape(n, 3)
-        self.normals = np.array([[t.normal[0], t.normal[1], 0.0] for t in self.targets], dtype=float).reshape(n, 3)
+        nxy = np.array([t.normal for t in self.targets], dtype=float).reshape(n, 2)
+        nxy = nxy / np.hypot(nxy[:, 0], nxy[:, 1])[:, None]
+        zeros = np.zeros((n, 1))
+        self.normals = np.hstack([nxy, zeros])
+        self.across = np.hstack([-nxy[:, 1:], nxy[:, :1], zeros])
         self.u = np.empty((n, N_POINTS))
         self.v = np.empty((n, N_POINTS))
         nx, ny = OCCLUSION_GRID
@@ -186,8 +196,13 @@ class TruthGeometry:
                                         uu.ravel()])
             self.v[i] = np.concatenate([[-hh, -hh, hh, hh], [-vo, -vo, vo, vo], np.full(4, -hh), np.full(4, hh),
                                         vv.ravel()])
-        # per-target constants of the TargetTruth records
-        self._static = [{"id": t.id, "polarity": t.polarity} for t in self.targets]
+        # per-frame operands: (n, k, 1) point coordinates, the negated normals, the records' constants
+        self._u_outer, self._v_outer = self.u[:, OUTER].copy(), self.v[:, OUTER].copy()
+        self._u_image, self._v_image = self.u[:, IMAGE, None].copy(), self.v[:, IMAGE, None].copy()
+        self._u_grid, self._v_grid = self.u[:, GRID, None].copy(), self.v[:, GRID, None].copy()
+        self._away = -self.normals
+        self._ids = [t.id for t in self.targets]
+        self._polarities = [t.polarity for t in self.targets]
 
     @classmethod
     def of(cls, world_map) -> "TruthGeometry":
@@ -199,10 +214,6 @@ class TruthGeometry:
 
 
 _CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-# TargetTruth's fields after id, polarity, in declaration order (the order frame_truth's columns come in)
-_FIELDS = ("visible", "in_view", "facing", "occluded_fraction", "in_envelope", "distance", "alpha", "beta", "z",
-           "height", "corners", "bbox", "bar_width_px", "bar_rows")
-assert ("id", "polarity") + _FIELDS == tuple(f.name for f in fields(TargetTruth))
 
 
 def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, depth: np.ndarray | None,
@@ -224,65 +235,65 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     """
     g = geometry if geometry is not None else TruthGeometry.of(world_map)
     n = len(g.targets)
-    level = level_rotation(cam_pose.heading)
-    jit = cam_pose.rotation.T @ level  # level -> actual camera frame
-    pos = np.asarray(cam_pose.position, dtype=float)
+    rot = cam_pose.rotation  # actual camera -> map
+    rel = g.centres - cam_pose.position  # (n, 3) m, lens -> centre
     # level-frame pose of every target (as level_target_pose)
-    p = (g.centres - pos) @ level  # (n, 3) m
-    n_cam = ((pos + g.normals) - pos) @ level
-    rel = pos[:2] - g.centres[:, :2]
-    facing = g.normals[:, 0] * rel[:, 0] + g.normals[:, 1] * rel[:, 1] > 0.0
+    p = rel @ level_rotation(cam_pose.heading)  # (n, 3) m
+    away = g._away @ level_rotation(cam_pose.heading)  # -normal, level frame: (sin α, 0, cos α)
+    facing = np.einsum("ij,ij->i", rel, g.normals) < 0.0  # normal . (lens - centre) > 0
     d = np.hypot(p[:, 0], p[:, 2])
     beta = np.arctan2(p[:, 0], p[:, 2])
-    alpha = np.arctan2(-n_cam[:, 0], -n_cam[:, 2])
-    height = p[:, 1]
-    cx, cz = d * np.sin(beta), d * np.cos(beta)  # TargetPose.centre (x, z), cz == TargetPose.z
-    # every point of every target, level -> actual camera frame: (n, 51, 3) m
-    ca, sa = np.cos(alpha)[:, None], np.sin(alpha)[:, None]
-    pts = np.stack([cx[:, None] + g.u * ca, height[:, None] + g.v,
-                    cz[:, None] - g.u * sa], axis=-1) @ jit.T
-    in_front = np.all(pts[:, OUTER, 2] > NEAR, axis=1)
+    alpha = np.arctan2(away[:, 0], away[:, 2])
+    z = d * np.cos(beta)
+    # actual camera frame: a face point (u, v) is at centre + u * across + v * down
+    centre = rel @ rot  # (n, 3)
+    across = g.across @ rot  # (n, 3)
+    down = -rot[2]  # (3,)
+    in_front = np.all(centre[:, 2:] + g._u_outer * across[:, 2:] + g._v_outer * down[2] > NEAR, axis=1)
     corners = np.full((n, 4, 2), np.nan)
     bbox = np.full((n, 4), np.nan)
     in_view = np.zeros(n, dtype=bool)
     occluded = np.zeros(n)
-    bar_w = np.zeros(n)
-    bar_rows = np.zeros(n)
+    bars = np.zeros((n, 2))  # bar_width_px, bar_rows
     f = np.flatnonzero(in_front)
     if len(f):
-        q = pts[f]  # (m, 51, 3), all in front of the lens (the points lie inside the printed face)
-        ideal = np.stack([camera.cx + camera.fx * (q[..., 0] / q[..., 2]),
-                          camera.cy + camera.fy * (q[..., 1] / q[..., 2])], axis=-1)  # (m, 51, 2) px
-        px = camera.project(q[:, :GRID.start]) if distorted and camera.dist else ideal[:, :GRID.start]
+        pts = centre[f, None] + g._u_image[f] * across[f, None] + g._v_image[f] * down  # (m, 16, 3) m
+        px = camera.project(pts) if distorted and camera.dist else _pinhole(camera, pts)  # (m, 16, 2) px
         corners[f] = px[:, ACTIVE]
-        outer = px[:, OUTER]
-        box = np.concatenate([outer.min(axis=1), outer.max(axis=1)], axis=1)  # (m, 4): x0, y0, x1, y1
-        bbox[f] = box
-        iv = ((box[:, 0] >= -0.5) & (box[:, 1] >= -0.5) & (box[:, 2] <= camera.width - 0.5)
-              & (box[:, 3] <= camera.height - 0.5))
+        lo, hi = px[:, OUTER].min(axis=1), px[:, OUTER].max(axis=1)  # (m, 2)
+        bbox[f, :2], bbox[f, 2:] = lo, hi
+        iv = np.all(lo >= -0.5, axis=1) & np.all(hi <= (camera.width - 0.5, camera.height - 0.5), axis=1)
         in_view[f] = iv
-        et, eb = px[:, EDGES_TOP], px[:, EDGES_BOTTOM]
-        bar_w[f] = np.min(np.abs(np.diff(et[..., 0], axis=1)), axis=1)
-        bar_rows[f] = np.min(eb[..., 1] - et[..., 1], axis=1)
+        top = px[:, EDGES_TOP]
+        bars[f, 0] = np.min(np.abs(top[:, 1:, 0] - top[:, :-1, 0]), axis=1)
+        bars[f, 1] = np.min(px[:, EDGES_BOTTOM, 1] - top[:, :, 1], axis=1)
         if depth is not None and iv.any():
-            k = np.flatnonzero(iv)
-            occluded[f[k]] = _occluded_fraction(ideal[k, GRID], q[k, GRID, 2], depth, supersample)
+            k = f[iv]
+            grid = centre[k, None] + g._u_grid[k] * across[k, None] + g._v_grid[k] * down  # (k, 35, 3) m
+            occluded[k] = _occluded_fraction(_pinhole(camera, grid), grid[..., 2], depth, supersample)
     visible = facing & in_view & (occluded == 0.0)
-    in_env = visible & (bar_w >= MIN_BAR_PX) & (bar_rows >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
-    columns = zip(visible.tolist(), in_view.tolist(), facing.tolist(), occluded.tolist(), in_env.tolist(),
-                  d.tolist(), alpha.tolist(), beta.tolist(), cz.tolist(), height.tolist(), corners,
-                  map(tuple, bbox.tolist()), bar_w.tolist(), bar_rows.tolist())
-    keep = (d > 1e-9).tolist()
-    new = object.__new__
+    in_env = visible & np.all(bars >= (MIN_BAR_PX, MIN_ROWS), axis=1) & (np.abs(alpha) <= MAX_ALPHA)
     out = []
-    for static, ok, values in zip(g._static, keep, columns):
-        if ok:  # a frozen dataclass filled without its __init__'s per-field object.__setattr__
+    new, set_dict = object.__new__, object.__setattr__
+    for ok, i, pol, vis, inv, fac, occ, env, dist, a, bt, zz, h, cor, box, (bw, br) in zip(
+            (d > 1e-9).tolist(), g._ids, g._polarities, visible.tolist(), in_view.tolist(), facing.tolist(),
+            occluded.tolist(), in_env.tolist(), d.tolist(), alpha.tolist(), beta.tolist(), z.tolist(),
+            p[:, 1].tolist(), corners, map(tuple, bbox.tolist()), bars.tolist()):
+        if ok:  # a centre at the lens has no pose. The frozen dataclass is filled without its
+            # __init__'s sixteen object.__setattr__ calls (a third of the time of a frame)
             t = new(TargetTruth)
-            t.__dict__.update(static)
-            t.__dict__.update(zip(_FIELDS, values))
+            set_dict(t, "__dict__", {
+                "id": i, "polarity": pol, "visible": vis, "in_view": inv, "facing": fac, "occluded_fraction": occ,
+                "in_envelope": env, "distance": dist, "alpha": a, "beta": bt, "z": zz, "height": h,
+                "corners": cor, "bbox": box, "bar_width_px": bw, "bar_rows": br})
             out.append(t)
     return FrameTruth(camera=camera, vehicle_pose=tuple(float(v) for v in vehicle_pose), camera_pose=cam_pose,
                       lighting=lighting, targets=tuple(out))
+
+
+def _pinhole(camera: Camera, pts: np.ndarray) -> np.ndarray:
+    """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens)."""
+    return pts[..., :2] / pts[..., 2:] * (camera.fx, camera.fy) + (camera.cx, camera.cy)
 
 
 def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersample: int) -> np.ndarray:
@@ -294,13 +305,10 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
     Returns:
         ``(m,)`` fractions in [0, 1]; 1 for a target none of whose points falls in the buffer.
     """
-    s = supersample
-    cols = np.floor((px[..., 0] + 0.5) * s).astype(int)
-    rows = np.floor((px[..., 1] + 0.5) * s).astype(int)
     h, w = depth.shape
-    ok = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    zbuf = depth[np.where(ok, rows, 0), np.where(ok, cols, 0)]
-    tol = 0.004 + 0.0005 * z
-    hidden = ((zbuf > 0) & (zbuf < z - tol) | (zbuf == 0)) & ok
+    ij = np.floor((px + 0.5) * supersample).astype(int)  # (m, k, 2) column, row
+    ok = np.all((ij >= 0) & (ij < (w, h)), axis=-1)
+    zbuf = depth[np.where(ok, ij[..., 1], 0), np.where(ok, ij[..., 0], 0)]
+    hidden = ((zbuf > 0) & (zbuf < z - (0.004 + 0.0005 * z)) | (zbuf == 0)) & ok
     n_ok = ok.sum(axis=1)
     return np.where(n_ok > 0, hidden.sum(axis=1) / np.maximum(n_ok, 1), 1.0)
