@@ -207,8 +207,11 @@ def test_a_target_at_the_lens_is_left_out(route):
 def test_the_geometry_is_built_once_per_map(route):
     m, _ = route
     g = TruthGeometry.of(m)
-    assert TruthGeometry.of(m) is g and g.u.shape == g.v.shape == (len(m.targets), 51)
-    assert g.centres.shape == g.normals.shape == (len(m.targets), 3)
+    assert TruthGeometry.of(m) is g and g.uv1.shape == (len(m.targets), 51, 3) and np.all(g.uv1[..., 2] == 1.0)
+    assert g.frame.shape == (len(m.targets), 3, 3)
+    assert np.array_equal(g.frame[:, 2], [t.center_3d for t in m.targets])
+    # across is the normal turned clockwise (seen from above): the right as seen facing the target
+    assert np.allclose(g.frame[:, 0, :2], [(-t.normal[1], t.normal[0]) for t in m.targets], rtol=0, atol=1e-15)
 
 
 def _k(c: Camera):

@@ -148,27 +148,28 @@ def level_target_pose(target, cam_pose: CameraPose) -> tuple[TargetPose | None, 
     return TargetPose(distance=d, beta=beta, alpha=alpha, height=float(p[1])), facing
 
 
-# columns of TruthGeometry.u / .v: the points projected for each target
+# rows of TruthGeometry.uv1: the points projected for each target
 ACTIVE, OUTER, EDGES_TOP, EDGES_BOTTOM = slice(0, 4), slice(4, 8), slice(8, 12), slice(12, 16)
 IMAGE = slice(0, 16)  # the points whose image the truth reports (corners, bbox, bar sizes)
 GRID = slice(16, 16 + OCCLUSION_GRID[0] * OCCLUSION_GRID[1])  # the occlusion test's face points
 N_POINTS = GRID.stop  # 51
+_CENTRE_ROW = np.array([[0.0], [0.0], [1.0]])  # selects the centre row of a (3, 3) target frame
 
 
 class TruthGeometry:
     """A map's targets as arrays, for :func:`frame_truth` (build once per map; :meth:`of` caches it).
 
     A face point at target coordinates ``(u, v)`` (m, ``u`` to the right as seen facing the
-    target, ``v`` down, origin at the centre) is at ``centre + u * across + v * (0, 0, -1)`` in
-    the map.
+    target, ``v`` down, origin at the centre) is, in the map, ``[u, v, 1] @ frame``, ``frame``
+    the target's rows ``across, down, centre``; in a camera frame, the same with the rows
+    rotated into it (and the lens position taken from the centre).
 
     Attributes:
         targets: the map's targets, in map order (n of them).
-        centres: ``(n, 3)`` face centres in the map (m).
-        normals: ``(n, 3)`` unit face normals (into free space), ``z = 0``.
-        across: ``(n, 3)`` unit direction of ``u`` in the map: ``(-normal_y, normal_x, 0)``.
-        u, v: ``(n, 51)`` target coordinates (m) of the points projected per frame: active-area
-            corners TL, TR, BR, BL (columns 0-3), printed-face corners (4-7), the four bar edges'
+        frame: ``(n, 3, 3)`` per target, rows: ``across = (-normal_y, normal_x, 0)`` (unit, the
+            direction of ``u``), ``down = (0, 0, -1)``, the face centre (m), in the map.
+        uv1: ``(n, 51, 3)`` rows ``[u, v, 1]`` (m) of the points projected per frame: active-area
+            corners TL, TR, BR, BL (rows 0-3), printed-face corners (4-7), the four bar edges'
             tops (8-11) and bottoms (12-15), and the 7 x 5 occlusion grid over 90 % of the
             printed face (16-50, row-major).
     """
@@ -176,31 +177,24 @@ class TruthGeometry:
     def __init__(self, targets) -> None:
         self.targets = tuple(targets)
         n = len(self.targets)
-        self.centres = np.array([t.center_3d for t in self.targets], dtype=float).reshape(n, 3)
-        nxy = np.array([t.normal for t in self.targets], dtype=float).reshape(n, 2)
-        nxy = nxy / np.hypot(nxy[:, 0], nxy[:, 1])[:, None]
-        zeros = np.zeros((n, 1))
-        self.normals = np.hstack([nxy, zeros])
-        self.across = np.hstack([-nxy[:, 1:], nxy[:, :1], zeros])
-        self.u = np.empty((n, N_POINTS))
-        self.v = np.empty((n, N_POINTS))
+        self.frame = np.zeros((n, 3, 3))
+        self.uv1 = np.ones((n, N_POINTS, 3))
         nx, ny = OCCLUSION_GRID
         for i, t in enumerate(self.targets):
+            normal = np.asarray(t.normal, dtype=float) / math.hypot(*t.normal)
+            self.frame[i] = [[-normal[1], normal[0], 0.0], [0.0, 0.0, -1.0], t.center_3d]
             spec = t.spec
             b, hh = spec.bar_width, spec.bar_height / 2
             uo, vo = spec.outer_width / 2, spec.outer_height / 2
             edges = np.array([-1.5, -0.5, 0.5, 1.5]) * b
             gu, gv = spec.outer_width / 2 * 0.9, spec.outer_height / 2 * 0.9
             uu, vv = np.meshgrid(np.linspace(-gu, gu, nx), np.linspace(-gv, gv, ny))
-            self.u[i] = np.concatenate([[-1.5 * b, 1.5 * b, 1.5 * b, -1.5 * b], [-uo, uo, uo, -uo], edges, edges,
-                                        uu.ravel()])
-            self.v[i] = np.concatenate([[-hh, -hh, hh, hh], [-vo, -vo, vo, vo], np.full(4, -hh), np.full(4, hh),
-                                        vv.ravel()])
-        # per-frame operands: (n, k, 1) point coordinates, the negated normals, the records' constants
-        self._u_outer, self._v_outer = self.u[:, OUTER].copy(), self.v[:, OUTER].copy()
-        self._u_image, self._v_image = self.u[:, IMAGE, None].copy(), self.v[:, IMAGE, None].copy()
-        self._u_grid, self._v_grid = self.u[:, GRID, None].copy(), self.v[:, GRID, None].copy()
-        self._away = -self.normals
+            self.uv1[i, :, 0] = np.concatenate([[-1.5 * b, 1.5 * b, 1.5 * b, -1.5 * b], [-uo, uo, uo, -uo], edges,
+                                                edges, uu.ravel()])
+            self.uv1[i, :, 1] = np.concatenate([[-hh, -hh, hh, hh], [-vo, -vo, vo, vo], np.full(4, -hh),
+                                                np.full(4, hh), vv.ravel()])
+        self._outer, self._image, self._grid = (self.uv1[:, s].copy() for s in (OUTER, IMAGE, GRID))
+        self._blank = np.concatenate([np.full((n, 12), np.nan), np.zeros((n, 3))], axis=1)
         self._ids = [t.id for t in self.targets]
         self._polarities = [t.polarity for t in self.targets]
 
@@ -235,44 +229,39 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     """
     g = geometry if geometry is not None else TruthGeometry.of(world_map)
     n = len(g.targets)
-    rot = cam_pose.rotation  # actual camera -> map
-    rel = g.centres - cam_pose.position  # (n, 3) m, lens -> centre
-    # level-frame pose of every target (as level_target_pose)
-    p = rel @ level_rotation(cam_pose.heading)  # (n, 3) m
-    away = g._away @ level_rotation(cam_pose.heading)  # -normal, level frame: (sin α, 0, cos α)
-    facing = np.einsum("ij,ij->i", rel, g.normals) < 0.0  # normal . (lens - centre) > 0
+    rows = (g.frame - cam_pose.position * _CENTRE_ROW).reshape(3 * n, 3)  # centre row now lens -> centre
+    lv = rows @ level_rotation(cam_pose.heading)  # (3n, 3) level camera frame
+    act = (rows @ cam_pose.rotation).reshape(n, 3, 3)  # actual camera frame (jitter included)
+    # level-frame pose (as level_target_pose): p the centre, (cos α, 0, -sin α) across
+    p, across = lv[2::3], lv[0::3]  # (n, 3)
     d = np.hypot(p[:, 0], p[:, 2])
     beta = np.arctan2(p[:, 0], p[:, 2])
-    alpha = np.arctan2(away[:, 0], away[:, 2])
+    alpha = np.arctan2(-across[:, 2], across[:, 0])
     z = d * np.cos(beta)
-    # actual camera frame: a face point (u, v) is at centre + u * across + v * down
-    centre = rel @ rot  # (n, 3)
-    across = g.across @ rot  # (n, 3)
-    down = -rot[2]  # (3,)
-    in_front = np.all(centre[:, 2:] + g._u_outer * across[:, 2:] + g._v_outer * down[2] > NEAR, axis=1)
-    corners = np.full((n, 4, 2), np.nan)
-    bbox = np.full((n, 4), np.nan)
+    facing = across[:, 2] * p[:, 0] - across[:, 0] * p[:, 2] < 0.0  # normal . (lens - centre) > 0
+    in_front = (g._outer @ act[:, :, 2:]).min(axis=1)[:, 0] > NEAR  # the printed face's corners
+    table = g._blank.copy()  # (n, 15): corners (8, NaN), bbox (4, NaN), bar_width_px, bar_rows, occluded (0)
+    corners, bbox, bars, occluded = table[:, :8].reshape(n, 4, 2), table[:, 8:12], table[:, 12:14], table[:, 14]
     in_view = np.zeros(n, dtype=bool)
-    occluded = np.zeros(n)
-    bars = np.zeros((n, 2))  # bar_width_px, bar_rows
-    f = np.flatnonzero(in_front)
+    f = in_front.nonzero()[0]
     if len(f):
-        pts = centre[f, None] + g._u_image[f] * across[f, None] + g._v_image[f] * down  # (m, 16, 3) m
+        pts = g._image[f] @ act[f]  # (m, 16, 3) m
         px = camera.project(pts) if distorted and camera.dist else _pinhole(camera, pts)  # (m, 16, 2) px
         corners[f] = px[:, ACTIVE]
         lo, hi = px[:, OUTER].min(axis=1), px[:, OUTER].max(axis=1)  # (m, 2)
         bbox[f, :2], bbox[f, 2:] = lo, hi
-        iv = np.all(lo >= -0.5, axis=1) & np.all(hi <= (camera.width - 0.5, camera.height - 0.5), axis=1)
+        iv = (lo[:, 0] >= -0.5) & (lo[:, 1] >= -0.5) & (hi[:, 0] <= camera.width - 0.5) & (
+            hi[:, 1] <= camera.height - 0.5)
         in_view[f] = iv
         top = px[:, EDGES_TOP]
-        bars[f, 0] = np.min(np.abs(top[:, 1:, 0] - top[:, :-1, 0]), axis=1)
-        bars[f, 1] = np.min(px[:, EDGES_BOTTOM, 1] - top[:, :, 1], axis=1)
+        bars[f, 0] = np.abs(top[:, 1:, 0] - top[:, :-1, 0]).min(axis=1)
+        bars[f, 1] = (px[:, EDGES_BOTTOM, 1] - top[:, :, 1]).min(axis=1)
         if depth is not None and iv.any():
             k = f[iv]
-            grid = centre[k, None] + g._u_grid[k] * across[k, None] + g._v_grid[k] * down  # (k, 35, 3) m
+            grid = g._grid[k] @ act[k]  # (k, 35, 3) m
             occluded[k] = _occluded_fraction(_pinhole(camera, grid), grid[..., 2], depth, supersample)
     visible = facing & in_view & (occluded == 0.0)
-    in_env = visible & np.all(bars >= (MIN_BAR_PX, MIN_ROWS), axis=1) & (np.abs(alpha) <= MAX_ALPHA)
+    in_env = visible & (bars[:, 0] >= MIN_BAR_PX) & (bars[:, 1] >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
     out = []
     new, set_dict = object.__new__, object.__setattr__
     for ok, i, pol, vis, inv, fac, occ, env, dist, a, bt, zz, h, cor, box, (bw, br) in zip(
@@ -306,9 +295,11 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
         ``(m,)`` fractions in [0, 1]; 1 for a target none of whose points falls in the buffer.
     """
     h, w = depth.shape
-    ij = np.floor((px + 0.5) * supersample).astype(int)  # (m, k, 2) column, row
-    ok = np.all((ij >= 0) & (ij < (w, h)), axis=-1)
-    zbuf = depth[np.where(ok, ij[..., 1], 0), np.where(ok, ij[..., 0], 0)]
-    hidden = ((zbuf > 0) & (zbuf < z - (0.004 + 0.0005 * z)) | (zbuf == 0)) & ok
+    ij = np.floor((px + 0.5) * supersample).astype(np.int64)  # (m, k, 2) column, row
+    inside = ij.view(np.uint64) < np.array((w, h), dtype=np.uint64)  # negatives wrap to huge
+    ok = inside[..., 0] & inside[..., 1]
+    ij = np.clip(ij, 0, (w - 1, h - 1))
+    zbuf = depth[ij[..., 1], ij[..., 0]]  # (m, k); meaningless where not ok
+    hidden = np.where(zbuf > 0, zbuf < z - (0.004 + 0.0005 * z), zbuf == 0) & ok
     n_ok = ok.sum(axis=1)
     return np.where(n_ok > 0, hidden.sum(axis=1) / np.maximum(n_ok, 1), 1.0)
