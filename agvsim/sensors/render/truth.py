@@ -246,7 +246,8 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     f = in_front.nonzero()[0]
     if len(f):
         pts = g._image[f] @ act[f]  # (m, 16, 3) m
-        px = camera.project(pts) if distorted and camera.dist else _pinhole(camera, pts)  # (m, 16, 2) px
+        k = np.array([[camera.fx, 0.0], [0.0, camera.fy], [camera.cx, camera.cy]])
+        px = camera.project(pts) if distorted and camera.dist else _pinhole(pts, k)  # (m, 16, 2) px
         corners[f] = px[:, ACTIVE]
         lo, hi = px[:, OUTER].min(axis=1), px[:, OUTER].max(axis=1)  # (m, 2)
         bbox[f, :2], bbox[f, 2:] = lo, hi
@@ -257,9 +258,9 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
         bars[f, 0] = np.abs(top[:, 1:, 0] - top[:, :-1, 0]).min(axis=1)
         bars[f, 1] = (px[:, EDGES_BOTTOM, 1] - top[:, :, 1]).min(axis=1)
         if depth is not None and iv.any():
-            k = f[iv]
-            grid = g._grid[k] @ act[k]  # (k, 35, 3) m
-            occluded[k] = _occluded_fraction(_pinhole(camera, grid), grid[..., 2], depth, supersample)
+            seen = f[iv]
+            grid = g._grid[seen] @ act[seen]  # (s, 35, 3) m
+            occluded[seen] = _occluded_fraction(_pinhole(grid, k), grid[..., 2], depth, supersample)
     visible = facing & in_view & (occluded == 0.0)
     in_env = visible & (bars[:, 0] >= MIN_BAR_PX) & (bars[:, 1] >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
     out = []
@@ -280,9 +281,10 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
                       lighting=lighting, targets=tuple(out))
 
 
-def _pinhole(camera: Camera, pts: np.ndarray) -> np.ndarray:
-    """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens)."""
-    return pts[..., :2] / pts[..., 2:] * (camera.fx, camera.fy) + (camera.cx, camera.cy)
+def _pinhole(pts: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens):
+    ``[X/Z, Y/Z, 1] @ k``, ``k`` the ``(3, 2)`` ``[[fx, 0], [0, fy], [cx, cy]]``."""
+    return (pts / pts[..., 2:]) @ k
 
 
 def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersample: int) -> np.ndarray:
@@ -298,8 +300,9 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
     ij = np.floor((px + 0.5) * supersample).astype(np.int64)  # (m, k, 2) column, row
     inside = ij.view(np.uint64) < np.array((w, h), dtype=np.uint64)  # negatives wrap to huge
     ok = inside[..., 0] & inside[..., 1]
-    ij = np.clip(ij, 0, (w - 1, h - 1))
-    zbuf = depth[ij[..., 1], ij[..., 0]]  # (m, k); meaningless where not ok
-    hidden = np.where(zbuf > 0, zbuf < z - (0.004 + 0.0005 * z), zbuf == 0) & ok
+    zbuf = depth[ij[..., 1] * ok, ij[..., 0] * ok]  # (m, k); pixel (0, 0) where not ok
+    # hidden: nothing there (0) or something nearer; as the points are > NEAR away the threshold
+    # is > 0, so that is 0 <= zbuf < threshold
+    hidden = (zbuf >= 0) & (zbuf < z - (0.004 + 0.0005 * z)) & ok
     n_ok = ok.sum(axis=1)
     return np.where(n_ok > 0, hidden.sum(axis=1) / np.maximum(n_ok, 1), 1.0)
