@@ -214,5 +214,12 @@ def test_the_geometry_is_built_once_per_map(route):
     assert np.allclose(g.frame[:, 0, :2], [(-t.normal[1], t.normal[0]) for t in m.targets], rtol=0, atol=1e-15)
 
 
+def test_a_map_without_targets(route):
+    m, cams = route
+    vp, cp = cams[0]
+    truth = frame_truth(m, Camera.thesis(16.0), cp, vp, np.zeros((480, 512)), geometry=TruthGeometry(()))
+    assert truth.targets == () and truth.visible == ()
+
+
 def _k(c: Camera):
     return c.fx, c.fy, c.cx, c.cy, c.width, c.height

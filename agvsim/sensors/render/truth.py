@@ -13,10 +13,13 @@ buffer shows nothing in front of it at any of a grid of points on the face.
 ``in_envelope`` adds the localizer's working envelope (bars >= 5 px wide and
 >= 16 rows tall, |α| <= 70°).
 
-:func:`frame_truth` works on all targets at once: :class:`TruthGeometry` holds a
-map's target centres, normals and the target-frame ``(u, v)`` of every point
-it projects (built once per map and cached), so a frame costs a handful of
-NumPy operations on ``(n_targets, 51)`` arrays whatever the number of targets.
+:func:`frame_truth` works on all targets at once: :class:`TruthGeometry` holds,
+per target, its frame (the face's across and down directions and its centre in
+the map) and the target coordinates of every point projected (built once per
+map and cached), so a frame costs a few dozen NumPy operations on
+``(n_targets, k, 3)`` arrays: all targets' level-frame pose and whether they
+are in front of the lens, the image geometry of those in front, the
+depth-buffer test of those in view.
 """
 from __future__ import annotations
 
@@ -201,7 +204,10 @@ class TruthGeometry:
     @classmethod
     def of(cls, world_map) -> "TruthGeometry":
         """The (cached) geometry of ``world_map``'s targets."""
-        g = _CACHE.get(world_map)
+        try:
+            g = _CACHE.get(world_map)
+        except TypeError:  # a map that cannot be weakly referenced: not cached
+            return cls(world_map.targets)
         if g is None:
             g = _CACHE[world_map] = cls(world_map.targets)
         return g
@@ -259,7 +265,7 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
         bars[f, 1] = (px[:, EDGES_BOTTOM, 1] - top[:, :, 1]).min(axis=1)
         if depth is not None and iv.any():
             seen = f[iv]
-            grid = g._grid[seen] @ act[seen]  # (s, 35, 3) m
+            grid = g._grid[seen] @ act[seen]  # (len(seen), 35, 3) m
             occluded[seen] = _occluded_fraction(_pinhole(grid, k), grid[..., 2], depth, supersample)
     visible = facing & in_view & (occluded == 0.0)
     in_env = visible & (bars[:, 0] >= MIN_BAR_PX) & (bars[:, 1] >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
@@ -270,7 +276,7 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
             occluded.tolist(), in_env.tolist(), d.tolist(), alpha.tolist(), beta.tolist(), z.tolist(),
             p[:, 1].tolist(), corners, map(tuple, bbox.tolist()), bars.tolist()):
         if ok:  # a centre at the lens has no pose. The frozen dataclass is filled without its
-            # __init__'s sixteen object.__setattr__ calls (a third of the time of a frame)
+            # __init__, whose sixteen object.__setattr__ calls per target would double a frame's time
             t = new(TargetTruth)
             set_dict(t, "__dict__", {
                 "id": i, "polarity": pol, "visible": vis, "in_view": inv, "facing": fac, "occluded_fraction": occ,
