@@ -31,9 +31,19 @@ from __future__ import annotations
 
 import numba
 
-__all__ = ["inline", "jit"]
+__all__ = ["fast_inline", "fast_jit", "inline", "jit"]
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)
 #: the decorator of the small helpers inlined into their callers (module docstring)
 inline = numba.njit(cache=True, nogil=True, inline="always")
+
+#: the simulator's frame kernels (the raycaster and its sensor, ``agvsim.sensors.render``):
+#: as :data:`jit` plus ``fastmath`` (LLVM may reorder and fuse float arithmetic and assume
+#: no NaN or infinity) and NumPy's error model (a float division by zero gives inf, no
+#: check per division). Those loops run per pixel; the reordering changes results in the
+#: last bits between machines or numba versions, never between two runs on one machine, so
+#: the same seed still gives the same frame bit for bit. The localizer keeps :data:`jit`.
+fast_jit = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+#: :data:`fast_jit` inlined into its callers
+fast_inline = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")

@@ -1,7 +1,7 @@
-"""Camera frames of wall targets, rendered with pyrender (issue 4).
+"""Camera frames of wall targets: a compiled raycaster (default) or pyrender (the reference).
 
-Importing this package imports neither pyrender nor OpenGL; the GL context is
-opened when the first frame is rendered (:mod:`agvsim.sensors.render.gl`).
+Importing this package imports neither pyrender, OpenGL nor numba; the pyrender backend
+opens its GL context when its first frame is rendered (:mod:`agvsim.sensors.render.gl`).
 
     >>> import numpy as np
     >>> from agvsim.world import load_map
@@ -11,8 +11,9 @@ opened when the first frame is rendered (:mod:`agvsim.sensors.render.gl`).
     ...                         np.random.default_rng(0))
     >>> truth.to_dict()["targets"][0]["distance"]
 
-Modules: ``gl`` (headless platform), ``textures``, ``scene``, ``lighting``,
-``mount``, ``sensor``, ``truth``, ``renderer``, ``strip`` (demo strip of frames).
+Modules: ``renderer`` (``CameraRenderer``), ``backends`` (the list), ``raycast`` (+ its
+kernels and ``ray_records``), ``pyrender_backend`` and ``gl`` (headless platform),
+``scene``, ``textures``, ``lighting``, ``mount``, ``sensor``, ``truth``, ``strip`` (demo strip).
 """
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ from localizer.lazy import lazy_exports
 
 _LAZY = {
     "CameraRenderer": "agvsim.sensors.render.renderer",
+    "BACKENDS": "agvsim.sensors.render.backends",
+    "DEFAULT_BACKEND": "agvsim.sensors.render.backends",
     "RenderConditions": "agvsim.sensors.render.renderer",
     "CameraMount": "agvsim.sensors.render.mount",
     "CameraPose": "agvsim.sensors.render.mount",

@@ -68,9 +68,63 @@ class Distractor:
     size: tuple[float, float]  # m, width x height
 
 
+@dataclass(frozen=True)
+class FaceLook:
+    """The texture of one vertical face of a :class:`Solid` (seen from outside).
+
+    Attributes:
+        texture: key into :attr:`SceneDescription.textures`.
+        u: texture ``u`` at the face's left and right ends, seen from the front.
+        v: texture ``v`` at the bottom (``z = 0``) and top (``z = height``) of the face.
+        tiled: whether the texture repeats.
+    """
+
+    texture: str
+    u: tuple[float, float]
+    v: tuple[float, float]
+    tiled: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class Solid:
+    """A vertical prism standing on the floor: a wall piece or an obstacle, in the map's geometry.
+
+    Attributes:
+        polygon: ``(K, 2)`` float64 convex outline (m), counter-clockwise; edge ``k`` runs
+            from vertex ``k`` to ``k + 1`` and, seen from outside, vertex ``k`` is on the left.
+        height: m.
+        faces: per edge, its :class:`FaceLook` (None for an edge inside a split polygon).
+        top: ``(texture key, (u, v))``: the top is drawn in that one texel of the texture.
+    """
+
+    polygon: np.ndarray
+    height: float
+    faces: tuple[FaceLook | None, ...]
+    top: tuple[str, tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class Decal:
+    """A printed quad on a wall face (a target or a distractor): texture ``u`` runs 0 -> 1 from
+    ``left`` to ``right`` seen from the front, ``v`` 0 -> 1 from ``z[0]`` to ``z[1]``.
+
+    Attributes:
+        texture: key into :attr:`SceneDescription.textures`.
+        left, right: ``(x, y)`` ends on the wall surface (m). z: ``(bottom, top)`` (m).
+        normal: ``(2,)`` unit, the direction it faces.
+    """
+
+    texture: str
+    left: tuple[float, float]
+    right: tuple[float, float]
+    z: tuple[float, float]
+    normal: tuple[float, float]
+
+
 @dataclass(frozen=True, eq=False)
 class SceneDescription:
-    """Everything the renderer uploads once: meshes, textures (reflectance) and distractors."""
+    """Everything a renderer needs once: meshes (for OpenGL), solids and decals (for the
+    raycaster), textures (reflectance) and distractors; both describe the same scene."""
 
     name: str
     parts: tuple[MeshPart, ...]
@@ -79,6 +133,9 @@ class SceneDescription:
     bounds: tuple[float, float, float, float]
     background: float = 0.12  # reflectance-equivalent radiance of the unmodelled roof
     n_triangles: int = field(default=0)
+    solids: tuple[Solid, ...] = ()
+    decals: tuple[Decal, ...] = ()
+    floor: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # m, (x0, y0, x1, y1) of the floor
 
 
 class _Builder:
@@ -115,7 +172,7 @@ class _Builder:
         return tuple(out)
 
 
-def _triangulate(poly: np.ndarray) -> np.ndarray:
+def triangulate(poly: np.ndarray) -> np.ndarray:
     """Ear-clipping triangulation of a simple counter-clockwise polygon ``(K, 2)`` -> ``(K-2, 3)``."""
     idx = list(range(len(poly)))
     tris = []
@@ -210,6 +267,8 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
     rng = np.random.default_rng(seed)
     textures: dict[str, np.ndarray] = {}
     bld = _Builder()
+    solids: list[Solid] = []
+    decals: list[Decal] = []
 
     # floor
     xmin, ymin, xmax, ymax = world_map.bounds
@@ -253,6 +312,14 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
             bld.vertical_quad(plain, b - nl * r, b + nl * r, 0.0, h, (0, 2 * r / tw_), (0, h / th_))
             top = np.array([[*(a + nl * r), h], [*(b + nl * r), h], [*(b - nl * r), h], [*(a - nl * r), h]])
             bld.quad(plain, top, np.zeros((4, 2)))
+            # the same box in the map's geometry (full thickness) for the raycaster: edges
+            # right face, end b, left face, end a (counter-clockwise)
+            rm = wall.thickness / 2
+            side = FaceLook(key, (u_of(s0), u_of(s0 + L)), v, not stretched)
+            end = FaceLook(plain, (0.0, 2 * rm / tw_), (0.0, h / th_), True)
+            solids.append(Solid(np.array([a - nl * rm, b - nl * rm, b + nl * rm, a + nl * rm], float), h,
+                                (side, end, FaceLook(key, (u_of(s0 + L), u_of(s0)), v, not stretched), end),
+                                (plain, (0.0, 0.0))))
             s0 += L
 
     # obstacles
@@ -264,15 +331,18 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
         tile = tx.OBSTACLE_TILE.get(kind, 2.0)
         poly = np.asarray(ob.polygon, float)
         s = 0.0
+        looks = []
         for i in range(len(poly)):
             p, q = poly[i], poly[(i + 1) % len(poly)]
             L = float(np.linalg.norm(q - p))
             # CCW polygon: outside is on the right of p->q, so p is on the outside viewer's left
             bld.vertical_quad(key, p, q, 0.0, ob.height, (s / tile, (s + L) / tile), (0.0, 1.0))
+            looks.append(FaceLook(key, (s / tile, (s + L) / tile), (0.0, 1.0)))
             s += L
-        tris = _triangulate(poly)
+        tris = triangulate(poly)
         top = np.column_stack([poly, np.full(len(poly), ob.height)])
         bld.polygon(key, top, np.full((len(poly), 2), 0.02), tris)
+        solids.extend(_convex_solids(poly, looks, float(ob.height), (key, (0.02, 0.02)), tris))
 
     # targets: one texture per (spec, polarity)
     for t in world_map.targets:
@@ -282,9 +352,11 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
             textures[key] = tx.target_texture(spec, t.polarity)
         u_dir = np.array([-t.normal[1], t.normal[0]])  # the target's right, seen from the front
         half = spec.outer_width / 2
-        bld.vertical_quad(key, t.position - u_dir * half, t.position + u_dir * half,
-                          t.height - spec.outer_height / 2, t.height + spec.outer_height / 2,
-                          (0.0, 1.0), (0.0, 1.0), tiled=False)
+        left, right = t.position - u_dir * half, t.position + u_dir * half
+        z = (t.height - spec.outer_height / 2, t.height + spec.outer_height / 2)
+        bld.vertical_quad(key, left, right, z[0], z[1], (0.0, 1.0), (0.0, 1.0), tiled=False)
+        decals.append(Decal(key, tuple(map(float, left)), tuple(map(float, right)), z,
+                            (float(t.normal[0]), float(t.normal[1]))))
 
     # distractors
     distractors = _place_distractors(world_map, rng)
@@ -297,11 +369,35 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
         w, h = d.size
         bld.vertical_quad(key, c - u_dir * w / 2, c + u_dir * w / 2, d.centre[2] - h / 2, d.centre[2] + h / 2,
                           (0.0, 1.0), (0.0, 1.0), tiled=False)
+        decals.append(Decal(key, tuple(map(float, c - u_dir * w / 2)), tuple(map(float, c + u_dir * w / 2)),
+                            (d.centre[2] - h / 2, d.centre[2] + h / 2), d.normal))
 
     parts = bld.parts()
     return SceneDescription(
         name=world_map.name, parts=parts, textures=MappingProxyType(textures), distractors=tuple(distractors),
-        bounds=(xmin, ymin, xmax, ymax), n_triangles=int(sum(len(p.indices) for p in parts)))
+        bounds=(xmin, ymin, xmax, ymax), n_triangles=int(sum(len(p.indices) for p in parts)),
+        solids=tuple(solids), decals=tuple(decals), floor=(fx0, fy0, fx1, fy1))
+
+
+def _is_convex(poly: np.ndarray) -> bool:
+    d = np.roll(poly, -1, axis=0) - poly
+    cross = d[:, 0] * np.roll(d[:, 1], -1) - d[:, 1] * np.roll(d[:, 0], -1)
+    return bool(np.all(cross >= -1e-12))
+
+
+def _convex_solids(poly: np.ndarray, looks: list, height: float, top, tris: np.ndarray) -> list[Solid]:
+    """One :class:`Solid` for a convex outline; a non-convex one is split into its triangles
+    (their inner edges have no face: a ray inside the outline sees no new surface there)."""
+    if _is_convex(poly):
+        return [Solid(poly.copy(), height, tuple(looks), top)]
+    k = len(poly)
+    out = []
+    for tri in tris:
+        faces = []
+        for a, b in zip(tri, np.roll(tri, -1)):
+            faces.append(looks[a] if (b - a) % k == 1 else None)
+        out.append(Solid(poly[tri].copy(), height, tuple(faces), top))
+    return out
 
 
 def target_u_direction(normal2) -> np.ndarray:
@@ -310,5 +406,5 @@ def target_u_direction(normal2) -> np.ndarray:
     return np.array([-n[1], n[0]])
 
 
-__all__ = ["DISTRACTOR_CLEARANCE", "Distractor", "MeshPart", "SceneDescription", "WALL_INSET", "build_scene",
-           "target_u_direction"]
+__all__ = ["DISTRACTOR_CLEARANCE", "Decal", "Distractor", "FaceLook", "MeshPart", "SceneDescription", "Solid",
+           "WALL_INSET", "build_scene", "target_u_direction", "triangulate"]

@@ -51,6 +51,36 @@ class SensorModel:
         check_number("SensorModel.full_well", self.full_well, low=0.0, low_open=True)
 
 
+def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
+                    twist_cam: tuple[np.ndarray, np.ndarray], exposure_time: float,
+                    max_samples: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int] | None:
+    """The camera's motion over the exposure: ``(rot_a, tr_a, rot_b, tr_b, n)``, camera(t) ->
+    camera(0) at the exposure's start and end (rotation ``(3, 3)``, translation ``(3,)`` m) and
+    the number of samples ``n`` along each pixel's path (from the largest image motion,
+    2..``max_samples``); None when nothing moves by 0.05 px.
+
+    Args:
+        radiance: ``(H, W)`` (its shape only). depth: ``(H, W)`` m along the axis, 0 = far.
+        twist_cam: ``(v, w)``: linear (m/s) and angular (rad/s) velocity, ``(3,)`` each, camera frame.
+    """
+    import cv2
+
+    v, w = (np.asarray(a, float) for a in twist_cam)
+    h, wd = radiance.shape
+    z_min = float(np.min(depth[depth > 0])) if np.any(depth > 0) else 1e3
+    flow_rot = exposure_time * (abs(w[1]) * camera.fx + abs(w[0]) * camera.fy + abs(w[2]) * max(h, wd) / 2)
+    flow_tr = exposure_time * float(np.linalg.norm(v)) * camera.fx / max(min(z_min, 1e3), 0.1)
+    if flow_rot + flow_tr < 0.05:
+        return None
+    n = int(min(max_samples, max(2, math.ceil(2 * (flow_rot + flow_tr)))))
+    ends = []
+    for t in (-0.5, 0.5):
+        dt = t * exposure_time
+        ends.append(cv2.Rodrigues(np.asarray(w * dt, float).reshape(3, 1))[0])
+        ends.append(v * dt)
+    return ends[0], ends[1], ends[2], ends[3], n
+
+
 def motion_blur(radiance: np.ndarray, depth: np.ndarray, camera: Camera, twist_cam: tuple[np.ndarray, np.ndarray],
                 exposure_time: float, max_samples: int = 16) -> np.ndarray:
     """Average of the image over the exposure while the camera moves (static scene).
@@ -63,31 +93,24 @@ def motion_blur(radiance: np.ndarray, depth: np.ndarray, camera: Camera, twist_c
         exposure_time: s.
     Returns:
         ``(H, W)`` float32. Each output pixel averages the scene points it saw at
-        ``n`` instants across the exposure (``n`` from the largest image motion, 2..``max_samples``),
-        found by back-projecting with the pixel's depth at the exposure's ends and
+        ``n`` instants across the exposure (:func:`exposure_motion`), found by
+        back-projecting with the pixel's depth at the exposure's ends and
         interpolating between them (disocclusions are ignored).
     """
     import cv2
 
-    v, w = (np.asarray(a, float) for a in twist_cam)
+    motion = exposure_motion(camera, radiance, depth, twist_cam, exposure_time, max_samples)
+    if motion is None:
+        return radiance
     h, wd = radiance.shape
     z = np.where(depth > 0, depth, 1e3).astype(np.float32)
     jj, ii = np.meshgrid(np.arange(wd, dtype=np.float32), np.arange(h, dtype=np.float32))
     xn = (jj - camera.cx) / camera.fx
     yn = (ii - camera.cy) / camera.fy
-    # largest image motion over the exposure (px) sets the number of samples
-    flow_rot = exposure_time * (abs(w[1]) * camera.fx + abs(w[0]) * camera.fy + abs(w[2]) * max(h, wd) / 2)
-    flow_tr = exposure_time * float(np.linalg.norm(v)) * camera.fx / max(float(z.min()), 0.1)
-    n = int(min(max_samples, max(2, math.ceil(2 * (flow_rot + flow_tr)))))
-    if flow_rot + flow_tr < 0.05:
-        return radiance
     # exact sample positions at the start and end of the exposure; in between, pixel positions
     # are interpolated linearly (the motion over one exposure is small)
     ends = []
-    for t in (-0.5, 0.5):
-        dt = t * exposure_time
-        rot = cv2.Rodrigues(np.asarray(w * dt, float).reshape(3, 1))[0]  # camera(t) -> camera(0)
-        tr = v * dt
+    for rot, tr in ((motion[0], motion[1]), (motion[2], motion[3])):
         X, Y = xn * z, yn * z
         p0x = rot[0, 0] * X + rot[0, 1] * Y + rot[0, 2] * z + tr[0]
         p0y = rot[1, 0] * X + rot[1, 1] * Y + rot[1, 2] * z + tr[1]
@@ -96,6 +119,7 @@ def motion_blur(radiance: np.ndarray, depth: np.ndarray, camera: Camera, twist_c
                      (camera.cy + camera.fy * p0y / p0z).astype(np.float32)))
     (ax, ay), (bx, by) = ends
     dx, dy = bx - ax, by - ay
+    n = motion[4]
     acc = np.zeros_like(radiance, dtype=np.float32)
     for f in (np.arange(n, dtype=np.float32) + 0.5) / n:
         acc += cv2.remap(radiance, ax + f * dx, ay + f * dy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

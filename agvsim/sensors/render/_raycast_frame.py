@@ -1,0 +1,455 @@
+"""The raycaster's frame kernels: a column's spans to radiance, and a whole level frame.
+
+See :mod:`agvsim.sensors.render._raycast_kernels` for the geometry. Radiance is linear
+and relative (:mod:`agvsim.sensors.render.lighting`): reflectance x (ambient + lamps) x
+the lighting level at the surface point, as the pyrender backend's deferred shading.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agvsim.sensors.render._raycast_kernels import (MAX_HITS, MAX_SPANS, cast_ray, decal_cover, lamp_irradiance,
+                                                    mip_level, mip_sample, raster_lookup)
+from localizer._jit import fast_inline as inline
+from localizer._jit import fast_jit as jit
+
+__all__ = ["LIGHT_ROWS", "render_view", "shade_column"]
+
+LIGHT_ROWS = 32.0  # px between the rows where a face's irradiance is evaluated (linear between)
+_FACE, _FLAT, _BACKGROUND = 0, 1, 2
+_FAR = 1.0e4  # m
+
+
+@inline
+def _face_s(view, faces, f, x):
+    """Position along face ``f`` (m from its left end) where the ray of image column ``x``
+    meets the face's line, clamped to the face."""
+    xn = (x - view.cx) / view.fx
+    dx = view.fwd_x + xn * view.right_x
+    dy = view.fwd_y + xn * view.right_y
+    qx = faces.x[f] - view.cam_x
+    qy = faces.y[f] - view.cam_y
+    den = dx * faces.ey[f] - dy * faces.ex[f]
+    if abs(den) < 1e-12:
+        return 0.0 if (qx * dx + qy * dy) > 0 else faces.length[f]
+    s = -(dx * qy - dy * qx) / den
+    return min(max(s, 0.0), faces.length[f])
+
+
+@inline
+def _face_irradiance(light, f, s, z):
+    """Ambient + lamps on face ``f`` at ``s`` (m along it), ``z`` (m up): bilinear in the
+    face's table (cells of ``light.face_res``, built once per map)."""
+    res = light.face_res
+    nc = light.face_cols[f]
+    nr = light.face_rows[f]
+    fs = min(max(s / res, 0.0), nc - 1.0)
+    fz = min(max(z / res, 0.0), nr - 1.0)
+    j = min(int(fs), nc - 2) if nc > 1 else 0
+    i = min(int(fz), nr - 2) if nr > 1 else 0
+    ts = fs - j
+    tz = fz - i
+    base = light.face_offset[f] + i * nc + j
+    t = light.face_irr
+    j1 = 1 if nc > 1 else 0
+    i1 = nc if nr > 1 else 0
+    return ((t[base] * (1.0 - ts) + t[base + j1] * ts) * (1.0 - tz)
+            + (t[base + i1] * (1.0 - ts) + t[base + i1 + j1] * ts) * tz)
+
+
+@inline
+def _wrap(x, n, inv_n):
+    """``x`` (float texel coordinate) folded into ``0 <= x < n``."""
+    x = x - n * math.floor(x * inv_n)
+    return x if x < n else 0.0
+
+
+@inline
+def _shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc, depth, write_depth,
+                irr_scratch):
+    h_img = view.height
+    fy = view.fy
+    cy = view.cy
+    hc = view.cam_z
+    s_a = _face_s(view, faces, f, x0)
+    s_b = _face_s(view, faces, f, x1)
+    s_c = 0.5 * (s_a + s_b)
+    xn = (0.5 * (x0 + x1) - view.cx) / view.fx
+    px = view.cam_x + z * (view.fwd_x + xn * view.right_x)
+    py = view.cam_y + z * (view.fwd_y + xn * view.right_y)
+    if view.level >= 0.0:
+        gain *= view.level
+    else:
+        gain *= raster_lookup(light, light.zone, px, py)
+    zpy = z / fy  # m of height per row
+    # irradiance at rows y0 + m * step, linear between
+    n_l = int(math.ceil((y1 - y0) / LIGHT_ROWS)) + 1
+    step = (y1 - y0) / (n_l - 1)
+    inv_step = 1.0 / step
+    for m in range(n_l):
+        irr_scratch[m] = _face_irradiance(light, f, s_c, hc - (y0 + m * step - cy) * zpy)
+    # the texture: u fixed across the span, v linear in the row
+    tk = faces.texture[f]
+    du = (faces.u1[f] - faces.u0[f]) / faces.length[f]
+    dvz = (faces.v1[f] - faces.v0[f]) / faces.height[f]
+    lv = mip_level(tex, tk, max(abs(du * (s_b - s_a)) * tex.width[tk], abs(dvz * zpy) * tex.height[tk]))
+    mw = tex.mip_width[tk, lv]
+    mh = tex.mip_height[tk, lv]
+    moff = tex.mip_offset[tk, lv]
+    tiled = tex.tiled[tk]
+    xt = (faces.u0[f] + du * s_c) * mw - 0.5
+    if tiled:
+        xt = _wrap(xt, mw, 1.0 / mw)
+    else:
+        xt = min(max(xt, 0.0), mw - 1.0)
+    j0 = min(int(xt), mw - 1)
+    fj = xt - j0
+    j1 = j0 + 1 if j0 + 1 < mw else (0 if tiled else mw - 1)
+    # texel row (level lv) at image row y: ty0 + ty1 * y
+    ty1 = -dvz * zpy * mh
+    ty0 = (faces.v0[f] + dvz * (hc + cy * zpy)) * mh - 0.5
+    inv_mh = 1.0 / mh
+    s_lo = min(s_a, s_b)
+    s_hi = max(s_a, s_b)
+    d_lo = 1e300
+    d_hi = -1e300
+    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
+        if decals.s0[d] < s_hi and decals.s1[d] > s_lo:
+            d_lo = min(d_lo, decals.z0[d])
+            d_hi = max(d_hi, decals.z1[d])
+    mip = tex.mip
+    i_lo = max(int(math.floor(y0 + 0.5)), 0)
+    i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
+    # rows wholly inside the span and clear of decals take the lean path
+    f0 = max(int(math.ceil(y0 + 0.5)), i_lo)
+    f1 = min(int(math.floor(y1 - 0.5)), i_hi)
+    dec0 = h_img
+    dec1 = -1
+    if d_hi > d_lo:
+        dec0 = int(math.floor(cy + (hc - d_hi) / zpy - 0.5)) - 1
+        dec1 = int(math.ceil(cy + (hc - d_lo) / zpy + 0.5)) + 1
+    ty = ty0 + ty1 * i_lo
+    if tiled:
+        ty = _wrap(ty, mh, inv_mh)
+    q = (i_lo - y0) * inv_step
+    for i in range(i_lo, i_hi + 1):
+        if f0 <= i <= f1 and not dec0 <= i <= dec1:
+            # the lean path: a whole row, texel row and lighting advanced by one row
+            if tiled:
+                if ty < 0.0:
+                    ty += mh
+                elif ty >= mh:
+                    ty -= mh
+                tyc = ty
+            else:
+                tyc = min(max(ty, 0.0), mh - 1.0)
+            i0 = int(tyc)
+            if i0 > mh - 1:
+                i0 = mh - 1
+            fi = tyc - i0
+            i1 = i0 + 1 if i0 + 1 < mh else (0 if tiled else mh - 1)
+            r0 = moff + i0 * mw
+            r1 = moff + i1 * mw
+            a0 = mip[r0 + j0] + (mip[r0 + j1] - mip[r0 + j0]) * fj
+            a1 = mip[r1 + j0] + (mip[r1 + j1] - mip[r1 + j0]) * fj
+            m = int(q)
+            if m > n_l - 2:
+                m = n_l - 2
+            t = q - m
+            acc[i] += gain * (a0 + (a1 - a0) * fi) * (irr_scratch[m] + (irr_scratch[m + 1] - irr_scratch[m]) * t)
+            if write_depth:
+                depth[i] = z
+        else:
+            ya = i - 0.5
+            yb = i + 0.5
+            if ya < y0:
+                ya = y0
+            if yb > y1:
+                yb = y1
+            cov = yb - ya
+            if cov > 0.0:
+                ym = 0.5 * (ya + yb)
+                tr = ty0 + ty1 * ym
+                if tiled:
+                    tr = _wrap(tr, mh, inv_mh)
+                else:
+                    tr = min(max(tr, 0.0), mh - 1.0)
+                k0 = min(int(tr), mh - 1)
+                fr = tr - k0
+                k1 = k0 + 1 if k0 + 1 < mh else (0 if tiled else mh - 1)
+                r0 = moff + k0 * mw
+                r1 = moff + k1 * mw
+                alb = ((mip[r0 + j0] * (1.0 - fj) + mip[r0 + j1] * fj) * (1.0 - fr)
+                       + (mip[r1 + j0] * (1.0 - fj) + mip[r1 + j1] * fj) * fr)
+                z_top = hc - (ya - cy) * zpy
+                z_bot = hc - (yb - cy) * zpy
+                if z_top > d_lo and z_bot < d_hi:
+                    alb = decal_cover(faces, decals, tex, f, s_a, s_b, z_bot, z_top, alb)
+                qq = (ym - y0) * inv_step
+                mm = min(int(qq), n_l - 2)
+                tt = qq - mm
+                acc[i] += gain * cov * alb * (irr_scratch[mm] * (1.0 - tt) + irr_scratch[mm + 1] * tt)
+                if write_depth and ya <= i < yb:
+                    depth[i] = z
+        ty += ty1
+        q += inv_step
+
+
+@inline
+def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight, acc, depth, write_depth):
+    h_img = view.height
+    fy = view.fy
+    cy = view.cy
+    hc = view.cam_z
+    xn = (0.5 * (x0 + x1) - view.cx) / view.fx
+    dx = view.fwd_x + xn * view.right_x
+    dy = view.fwd_y + xn * view.right_y
+    span_x = (x1 - x0) / view.fx  # the footprint's width per metre of depth
+    fk = floor.texture
+    tex_w = tex.width[fk]
+    inv_tw = 1.0 / floor.tile_w
+    inv_th = 1.0 / floor.tile_h
+    k = fy * (hc - hh)
+    zone = light.floor_zone_irradiance if view.level < 0.0 else light.floor_irradiance
+    gain = weight * (1.0 if view.level < 0.0 else view.level)
+    mip = tex.mip
+    i_lo = max(int(math.floor(y0 + 0.5)), 0)
+    i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
+    for i in range(i_lo, i_hi + 1):
+        ya = i - 0.5
+        yb = i + 0.5
+        if ya < y0:
+            ya = y0
+        if yb > y1:
+            yb = y1
+        cov = yb - ya
+        if cov <= 0.0:
+            continue
+        ym = 0.5 * (ya + yb)
+        zm = k / (ym - cy) if ym - cy > k / _FAR else _FAR
+        px = view.cam_x + zm * dx
+        py = view.cam_y + zm * dy
+        if sid < 0:  # the floor, sampled at the footprint's scale
+            za = k / (yb - cy) if yb - cy > k / _FAR else _FAR
+            zb = k / (ya - cy) if ya - cy > k / _FAR else _FAR
+            foot = max(zb - za, zm * span_x) * inv_tw * tex_w
+            lv = 0
+            while foot >= 2.0 and lv < tex.mip_levels[fk] - 1:
+                foot *= 0.5
+                lv += 1
+            mw = tex.mip_width[fk, lv]
+            mh = tex.mip_height[fk, lv]
+            moff = tex.mip_offset[fk, lv]
+            xt = _wrap(px * inv_tw * mw - 0.5, mw, 1.0 / mw)
+            yt = _wrap(py * inv_th * mh - 0.5, mh, 1.0 / mh)
+            j0 = min(int(xt), mw - 1)
+            i0 = min(int(yt), mh - 1)
+            fj = xt - j0
+            fi = yt - i0
+            j1 = j0 + 1 if j0 + 1 < mw else 0
+            i1 = i0 + 1 if i0 + 1 < mh else 0
+            r0 = moff + i0 * mw
+            r1 = moff + i1 * mw
+            alb = ((mip[r0 + j0] * (1.0 - fj) + mip[r0 + j1] * fj) * (1.0 - fi)
+                   + (mip[r1 + j0] * (1.0 - fj) + mip[r1 + j1] * fj) * fi)
+            irr = raster_lookup(light, zone, px, py)
+        else:
+            alb = solids.top_albedo[sid]
+            irr = light.ambient + lamp_irradiance(light, px, py, hh, 0.0, 0.0, 1.0)
+            if view.level < 0.0:
+                irr *= raster_lookup(light, light.zone, px, py)
+        acc[i] += gain * cov * alb * irr
+        if write_depth and ya <= i < yb:
+            zi = k / (i - cy) if i - cy > k / _FAR else 0.0
+            depth[i] = zi
+
+
+@inline
+def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y1, sp_kind, sp_id, sp_val,
+                 x0, x1, weight, acc, depth, write_depth, irr_scratch):
+    """Add ``weight`` x the radiance of the spans of the (sub-)column ``x0 .. x1`` to ``acc``.
+
+    Args:
+        acc: ``(H,)`` float64 radiance accumulator of the column.
+        depth: ``(H,)`` float32 depth at the pixel centres (m along the axis, 0 = nothing),
+            written when ``write_depth``.
+        irr_scratch: ``(H + 2,)`` float64 scratch.
+    """
+    h_img = view.height
+    for k in range(ns):
+        y0 = sp_y0[k]
+        y1 = sp_y1[k]
+        if y1 <= y0:
+            continue
+        kind = sp_kind[k]
+        if kind == _FACE:
+            _shade_face(view, faces, decals, tex, light, sp_id[k], sp_val[k], y0, y1, x0, x1, weight, acc, depth,
+                        write_depth, irr_scratch)
+        elif kind == _FLAT:
+            _shade_flat(view, tex, light, floor, solids, sp_id[k], sp_val[k], y0, y1, x0, x1, weight, acc, depth,
+                        write_depth)
+        else:
+            i_lo = max(int(math.floor(y0 + 0.5)), 0)
+            i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
+            bg = weight * floor.background * view.background_level
+            for i in range(i_lo, i_hi + 1):
+                ya = max(y0, i - 0.5)
+                yb = min(y1, i + 0.5)
+                if yb <= ya:
+                    continue
+                acc[i] += bg * (yb - ya)
+                if write_depth and ya <= i < yb:
+                    depth[i] = 0.0
+
+
+@jit
+def _bin_solids(view, solids):
+    """CSR lists ``(start (W + 1,), items)`` of the solids whose outline may cross each column."""
+    w = view.width
+    n_solids = solids.height.shape[0]
+    lo = np.full(n_solids, -1, np.int64)
+    hi = np.full(n_solids, -2, np.int64)
+    counts = np.zeros(w + 1, np.int64)
+    for p in range(n_solids):
+        x_min = 1e300
+        x_max = -1e300
+        n_e = solids.start[p + 1] - solids.start[p]
+        n_front = 0
+        for a in range(n_e):
+            e = solids.start[p] + a
+            e2 = solids.start[p] + (a + 1) % n_e
+            # the edge's start vertex is where its line meets the previous edge's: store both
+            for q in (e, e2):
+                rx = solids.edge_x[q] - view.cam_x
+                ry = solids.edge_y[q] - view.cam_y
+                zq = rx * view.fwd_x + ry * view.fwd_y
+                if zq > view.near:
+                    n_front += 1
+            ax = solids.edge_x[e] - view.cam_x
+            ay = solids.edge_y[e] - view.cam_y
+            bx = solids.edge_x[e2] - view.cam_x
+            by = solids.edge_y[e2] - view.cam_y
+            za = ax * view.fwd_x + ay * view.fwd_y
+            zb = bx * view.fwd_x + by * view.fwd_y
+            xa = ax * view.right_x + ay * view.right_y
+            xb = bx * view.right_x + by * view.right_y
+            # clip the edge to the half-space in front of the near plane
+            if za <= view.near and zb <= view.near:
+                continue
+            if za < view.near:
+                t = (view.near - za) / (zb - za)
+                xa = xa + t * (xb - xa)
+                za = view.near
+            if zb < view.near:
+                t = (view.near - zb) / (za - zb)
+                xb = xb + t * (xa - xb)
+                zb = view.near
+            for xx, zz in ((xa, za), (xb, zb)):
+                ix = view.cx + view.fx * xx / zz
+                x_min = min(x_min, ix)
+                x_max = max(x_max, ix)
+        if n_front == 0 or x_max < x_min:
+            continue
+        j0 = int(math.ceil(x_min - 0.01 - 0.5))
+        j1 = int(math.floor(x_max + 0.01 + 0.5))
+        j0 = max(j0, 0)
+        j1 = min(j1, w - 1)
+        if j1 < j0:
+            continue
+        lo[p] = j0
+        hi[p] = j1
+        for j in range(j0, j1 + 1):
+            counts[j + 1] += 1
+    start = np.cumsum(counts)
+    items = np.empty(start[w], np.int64)
+    fill = start[:w].copy()
+    for p in range(n_solids):
+        for j in range(lo[p], hi[p] + 1):
+            items[fill[j]] = p
+            fill[j] += 1
+    return start, items
+
+
+@inline
+def _same_spans(n_a, kind_a, id_a, n_b, kind_b, id_b):
+    if n_a != n_b:
+        return False
+    for k in range(n_a):
+        if kind_a[k] != kind_b[k] or id_a[k] != id_b[k]:
+            return False
+    return True
+
+
+@jit
+def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t):
+    """Draw one level frame.
+
+    Args:
+        view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
+        radiance_t: out ``(W, H)`` float32, radiance, *transposed* (column-major image).
+        depth_t: out ``(W, H)`` float32, depth (m along the optical axis, 0 = nothing), transposed.
+    """
+    w = view.width
+    h = view.height
+    start, items = _bin_solids(view, solids)
+    hit_in = np.empty(MAX_HITS)
+    hit_out = np.empty(MAX_HITS)
+    hit_solid = np.empty(MAX_HITS, np.int64)
+    hit_edge = np.empty(MAX_HITS, np.int64)
+    # spans of the column's left edge ray (a), right edge ray (b), mean (m)
+    ay0 = np.empty(MAX_SPANS)
+    ay1 = np.empty(MAX_SPANS)
+    akind = np.empty(MAX_SPANS, np.int64)
+    aid = np.empty(MAX_SPANS, np.int64)
+    aval = np.empty(MAX_SPANS)
+    by0 = np.empty(MAX_SPANS)
+    by1 = np.empty(MAX_SPANS)
+    bkind = np.empty(MAX_SPANS, np.int64)
+    bid = np.empty(MAX_SPANS, np.int64)
+    bval = np.empty(MAX_SPANS)
+    my0 = np.empty(MAX_SPANS)
+    my1 = np.empty(MAX_SPANS)
+    mval = np.empty(MAX_SPANS)
+    acc = np.zeros(h)
+    dcol = np.zeros(h, np.float32)
+    scratch = np.empty(h + 2)
+    n_a = cast_ray(view, solids, floor, -0.5, items[start[0]:], start[1] - start[0], hit_in, hit_out,
+                   hit_solid, hit_edge, ay0, ay1, akind, aid, aval)
+    sub = max(view.subcolumns, 1)
+    for j in range(w):
+        cand = items[start[j]:]
+        n_cand = start[j + 1] - start[j]
+        n_b = cast_ray(view, solids, floor, j + 0.5, cand, n_cand, hit_in, hit_out, hit_solid, hit_edge,
+                       by0, by1, bkind, bid, bval)
+        acc[:] = 0.0
+        if _same_spans(n_a, akind, aid, n_b, bkind, bid):
+            for k in range(n_b):
+                my0[k] = 0.5 * (ay0[k] + by0[k])
+                my1[k] = 0.5 * (ay1[k] + by1[k])
+                if bkind[k] == _FACE:  # 1/Z is affine across a plane
+                    mval[k] = 2.0 / (1.0 / aval[k] + 1.0 / bval[k])
+                else:
+                    mval[k] = bval[k]
+            shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, bkind, bid, mval,
+                         j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch)
+        else:
+            for q in range(sub):
+                x0 = j - 0.5 + q / sub
+                x1 = j - 0.5 + (q + 1) / sub
+                n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), cand, n_cand, hit_in, hit_out, hit_solid,
+                               hit_edge, my0, my1, akind, aid, mval)
+                shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, akind, aid, mval,
+                             x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch)
+        for i in range(h):
+            radiance_t[j, i] = acc[i]
+            depth_t[j, i] = dcol[i]
+        # the right edge ray is the next column's left edge ray
+        n_a = n_b
+        for k in range(n_b):
+            ay0[k] = by0[k]
+            ay1[k] = by1[k]
+            akind[k] = bkind[k]
+            aid[k] = bid[k]
+            aval[k] = bval[k]

@@ -1,0 +1,407 @@
+"""The column raycaster's compiled kernels (numba, :data:`localizer._jit.jit`).
+
+With a level camera (horizontal optical axis, level rows: thesis §3.5) and a world of
+vertical faces standing on a horizontal floor, the image column at ``x`` sees exactly what
+lies along one ray of the floor plan: a height profile ``h(Z)`` made of convex prisms
+(walls, obstacles). Walking that profile front to back gives, for the column, a list of
+*spans* (rows ``y0 .. y1`` in continuous image coordinates, pixel ``i`` covering
+``i - 0.5 .. i + 0.5``): vertical faces where the profile rises, flat surfaces (floor,
+tops lower than the lens) between, the background above what is left. Nearer spans hide
+farther ones because the open part of a column is always the rows above everything drawn
+so far (everything stands on the floor).
+
+Anti-aliasing is by area:
+
+* vertically, each pixel row integrates the face's texture exactly over the heights it
+  covers (summed-area tables of the piecewise-constant texels, :func:`box_average`);
+* horizontally, a column whose two edge rays see the same spans is drawn once from the
+  mean of their spans (the span edges are straight across the column), integrating the
+  texture over the column's footprint on each face; a column a silhouette crosses is cut
+  into ``View.subcolumns`` sub-columns, each drawn from its own centre ray over its own
+  footprint.
+
+Depth is along the optical axis; the ray spacing is even on the image plane. A ray is
+clipped against each prism's half-planes (Cyrus-Beck), so it cannot pass between two
+faces that share an edge: grazing a corner gives an empty interval, not a leak.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from localizer._jit import fast_inline as inline
+from localizer._jit import fast_jit as jit
+
+__all__ = ["MAX_HITS", "MAX_SPANS", "box_average", "cast_ray", "decal_cover", "face_albedo", "lamp_irradiance",
+           "mip_level", "mip_sample", "raster_lookup"]
+
+MAX_SPANS = 96  # spans per ray (a column crossing every rack of a plant sees ~20)
+MAX_HITS = 96  # prisms crossed per ray
+_FACE, _FLAT, _BACKGROUND = 0, 1, 2  # agvsim.sensors.render.ray_records.SpanKind
+_FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
+
+
+# ------------------------------------------------------------------ textures
+@inline
+def _sat_at(sat, off, w, h, rows, cols):
+    """Bilinear value of a summed-area table (exact integral of the texels) at fractional
+    ``(rows, cols)`` inside ``0..h, 0..w``."""
+    i = int(math.floor(rows))
+    j = int(math.floor(cols))
+    stride = w + 1
+    if i >= h:
+        i = h - 1
+    if j >= w:
+        j = w - 1
+    if i < 0:
+        i = 0
+    if j < 0:
+        j = 0
+    fi = rows - i
+    fj = cols - j
+    base = off + i * stride + j
+    s00 = sat[base]
+    s01 = sat[base + 1]
+    s10 = sat[base + stride]
+    s11 = sat[base + stride + 1]
+    return (s00 * (1.0 - fi) * (1.0 - fj) + s01 * (1.0 - fi) * fj + s10 * fi * (1.0 - fj) + s11 * fi * fj)
+
+
+@inline
+def _cumulative(sat, off, w, h, tiled, uu, vv):
+    """Integral of texture texels over ``[0, uu] x [0, vv]`` (texel units), repeated if tiled."""
+    if tiled:
+        qu = math.floor(uu / w)
+        qv = math.floor(vv / h)
+        ru = uu - qu * w
+        rv = vv - qv * h
+        full = sat[off + h * (w + 1) + w]
+        return (qu * qv * full + qu * _sat_at(sat, off, w, h, rv, w) + qv * _sat_at(sat, off, w, h, h, ru)
+                + _sat_at(sat, off, w, h, rv, ru))
+    uu = min(max(uu, 0.0), float(w))
+    vv = min(max(vv, 0.0), float(h))
+    return _sat_at(sat, off, w, h, vv, uu)
+
+
+@inline
+def box_average(tex, k, u0, u1, v0, v1):
+    """Mean reflectance of texture ``k`` over the box ``u0..u1 x v0..v1`` (texture units,
+    1 = the whole texture; ``v`` up); the texels are constant squares, so this is exact.
+    Boxes thinner than 1e-6 of a texel are widened to that (a point sample)."""
+    w = tex.width[k]
+    h = tex.height[k]
+    off = tex.offset[k]
+    tiled = tex.tiled[k]
+    a, b = (u0, u1) if u0 <= u1 else (u1, u0)
+    c, d = (v0, v1) if v0 <= v1 else (v1, v0)
+    a *= w
+    b *= w
+    c *= h
+    d *= h
+    if not tiled:
+        a = min(max(a, 0.0), w - 1e-6)
+        b = min(max(b, 1e-6), float(w))
+        c = min(max(c, 0.0), h - 1e-6)
+        d = min(max(d, 1e-6), float(h))
+    if b - a < 1e-6:
+        m = 0.5 * (a + b)
+        a, b = m - 5e-7, m + 5e-7
+    if d - c < 1e-6:
+        m = 0.5 * (c + d)
+        c, d = m - 5e-7, m + 5e-7
+    sat = tex.sat
+    total = (_cumulative(sat, off, w, h, tiled, b, d) - _cumulative(sat, off, w, h, tiled, a, d)
+             - _cumulative(sat, off, w, h, tiled, b, c) + _cumulative(sat, off, w, h, tiled, a, c))
+    return total / ((b - a) * (d - c))
+
+
+@inline
+def mip_level(tex, k, footprint):
+    """The mip level of texture ``k`` for a pixel footprint of ``footprint`` level-0 texels."""
+    if footprint <= 1.0:
+        return 0
+    lv = int(math.floor(math.log2(footprint)))
+    return min(lv, tex.mip_levels[k] - 1)
+
+
+@inline
+def mip_sample(tex, k, lv, u, v):
+    """Bilinear reflectance of level ``lv`` of texture ``k`` at ``(u, v)`` (texture units, v up);
+    tiled textures repeat, others are clamped at their edges."""
+    w = tex.mip_width[k, lv]
+    h = tex.mip_height[k, lv]
+    off = tex.mip_offset[k, lv]
+    x = u * w - 0.5
+    y = v * h - 0.5
+    j0 = int(math.floor(x))
+    i0 = int(math.floor(y))
+    fj = x - j0
+    fi = y - i0
+    if tex.tiled[k]:
+        j0 %= w
+        i0 %= h
+        j1 = j0 + 1 if j0 + 1 < w else 0
+        i1 = i0 + 1 if i0 + 1 < h else 0
+    else:
+        j1 = min(max(j0 + 1, 0), w - 1)
+        i1 = min(max(i0 + 1, 0), h - 1)
+        j0 = min(max(j0, 0), w - 1)
+        i0 = min(max(i0, 0), h - 1)
+    m = tex.mip
+    a = m[off + i0 * w + j0] * (1.0 - fj) + m[off + i0 * w + j1] * fj
+    b = m[off + i1 * w + j0] * (1.0 - fj) + m[off + i1 * w + j1] * fj
+    return a * (1.0 - fi) + b * fi
+
+
+@inline
+def decal_cover(faces, decals, tex, f, s0, s1, z0, z1, base):
+    """Mean reflectance over ``s0..s1 x z0..z1`` of face ``f`` whose own surface there has
+    reflectance ``base``: each decal replaces it over its rectangle with its printed face,
+    integrated exactly (summed-area table)."""
+    if s1 < s0:
+        s0, s1 = s1, s0
+    if s1 - s0 < 1e-9:
+        s1 = s0 + 1e-9
+    if z1 < z0:
+        z0, z1 = z1, z0
+    if z1 - z0 < 1e-9:
+        z1 = z0 + 1e-9
+    area = (s1 - s0) * (z1 - z0)
+    total = base * area
+    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
+        a = max(s0, decals.s0[d])
+        b = min(s1, decals.s1[d])
+        c = max(z0, decals.z0[d])
+        e = min(z1, decals.z1[d])
+        if b <= a or e <= c:
+            continue
+        dw = decals.s1[d] - decals.s0[d]
+        dh = decals.z1[d] - decals.z0[d]
+        printed = box_average(tex, decals.texture[d], (a - decals.s0[d]) / dw, (b - decals.s0[d]) / dw,
+                              (c - decals.z0[d]) / dh, (e - decals.z0[d]) / dh)
+        total += (printed - base) * (b - a) * (e - c)
+    return total / area
+
+
+@jit
+def face_albedo(faces, decals, tex, f, s0, s1, z0, z1):
+    """Mean reflectance of face ``f`` over ``s0..s1`` (m along it) x ``z0..z1`` (m up),
+    decals included (each replaces the face's texture over its rectangle, exactly)."""
+    if s1 < s0:
+        s0, s1 = s1, s0
+    if s1 - s0 < 1e-9:
+        s1 = s0 + 1e-9
+    if z1 < z0:
+        z0, z1 = z1, z0
+    if z1 - z0 < 1e-9:
+        z1 = z0 + 1e-9
+    length = faces.length[f]
+    fh = faces.height[f]
+    du = (faces.u1[f] - faces.u0[f]) / length
+    dv = (faces.v1[f] - faces.v0[f]) / fh
+    k = faces.texture[f]
+    area = (s1 - s0) * (z1 - z0)
+    total = box_average(tex, k, faces.u0[f] + du * s0, faces.u0[f] + du * s1,
+                        faces.v0[f] + dv * z0, faces.v0[f] + dv * z1) * area
+    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
+        a = max(s0, decals.s0[d])
+        b = min(s1, decals.s1[d])
+        c = max(z0, decals.z0[d])
+        e = min(z1, decals.z1[d])
+        if b <= a or e <= c:
+            continue
+        part = (b - a) * (e - c)
+        base = box_average(tex, k, faces.u0[f] + du * a, faces.u0[f] + du * b,
+                           faces.v0[f] + dv * c, faces.v0[f] + dv * e)
+        dw = decals.s1[d] - decals.s0[d]
+        dh = decals.z1[d] - decals.z0[d]
+        printed = box_average(tex, decals.texture[d], (a - decals.s0[d]) / dw, (b - decals.s0[d]) / dw,
+                              (c - decals.z0[d]) / dh, (e - decals.z0[d]) / dh)
+        total += (printed - base) * part
+    return total / area
+
+
+# ------------------------------------------------------------------ lighting
+@inline
+def lamp_irradiance(light, px, py, pz, nx, ny, nz):
+    """Irradiance from the 3 x 3 ceiling lamps nearest ``(px, py, pz)`` on a surface of unit
+    normal ``n`` (:meth:`agvsim.sensors.render.lighting.Illumination.lamp_irradiance`)."""
+    s = light.spacing
+    i0 = math.floor((px - light.lamp_x0) / s + 0.5)
+    j0 = math.floor((py - light.lamp_y0) / s + 0.5)
+    dz = light.lamp_z - pz
+    if dz <= 0.0:
+        return 0.0
+    total = 0.0
+    for di in range(-1, 2):
+        dx = (light.lamp_x0 + (i0 + di) * s) - px
+        for dj in range(-1, 2):
+            dy = (light.lamp_y0 + (j0 + dj) * s) - py
+            r2 = dx * dx + dy * dy + dz * dz
+            c = dx * nx + dy * ny + dz * nz
+            if c > 0.0:
+                total += c * dz / (r2 * r2)
+    return total * light.gain
+
+
+@inline
+def raster_lookup(light, raster, x, y):
+    """Bilinear value of a lighting raster at map point ``(x, y)`` (edges replicated)."""
+    mx = (x - light.raster_x0) / light.raster_res
+    my = (y - light.raster_y0) / light.raster_res
+    rows, cols = raster.shape
+    j = int(math.floor(mx))
+    i = int(math.floor(my))
+    fj = mx - j
+    fi = my - i
+    j0 = min(max(j, 0), cols - 1)
+    j1 = min(max(j + 1, 0), cols - 1)
+    i0 = min(max(i, 0), rows - 1)
+    i1 = min(max(i + 1, 0), rows - 1)
+    return ((raster[i0, j0] * (1.0 - fj) + raster[i0, j1] * fj) * (1.0 - fi)
+            + (raster[i1, j0] * (1.0 - fj) + raster[i1, j1] * fj) * fi)
+
+
+# ------------------------------------------------------------------ rays
+@inline
+def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, hit_edge,
+             sp_y0, sp_y1, sp_kind, sp_id, sp_val):
+    """The spans of the column ray at image ``x``, front to back.
+
+    Args:
+        cand[:n_cand]: the solids that may cross this ray.
+        hit_*: scratch ``(MAX_HITS,)``. sp_*: out ``(MAX_SPANS,)``: rows ``y0..y1``, kind
+            (:class:`SpanKind`), id (face; solid or -1 for flat; -2 background) and value
+            (depth Z of a face, m; height of a flat span, m).
+    Returns:
+        the number of spans (they cover ``-0.5 .. height - 0.5`` from the bottom up).
+    """
+    xn = (x - view.cx) / view.fx
+    dx = view.fwd_x + xn * view.right_x
+    dy = view.fwd_y + xn * view.right_y
+    ox = view.cam_x
+    oy = view.cam_y
+    near = view.near
+    n = 0
+    for c in range(n_cand):
+        p = cand[c]
+        t_in = -1e300
+        t_out = 1e300
+        e_in = -1
+        for e in range(solids.start[p], solids.start[p + 1]):
+            den = solids.edge_nx[e] * dx + solids.edge_ny[e] * dy
+            num = solids.edge_nx[e] * (ox - solids.edge_x[e]) + solids.edge_ny[e] * (oy - solids.edge_y[e])
+            if den < 0.0:
+                t = -num / den
+                if t > t_in:
+                    t_in = t
+                    e_in = e
+            elif den > 0.0:
+                t = -num / den
+                if t < t_out:
+                    t_out = t
+            elif num > 0.0:
+                t_out = -1e300
+                break
+        if t_out > t_in and t_out > near and n < MAX_HITS:
+            # insertion by entry depth
+            k = n
+            while k > 0 and hit_in[k - 1] > t_in:
+                hit_in[k] = hit_in[k - 1]
+                hit_out[k] = hit_out[k - 1]
+                hit_solid[k] = hit_solid[k - 1]
+                hit_edge[k] = hit_edge[k - 1]
+                k -= 1
+            hit_in[k] = t_in
+            hit_out[k] = t_out
+            hit_solid[k] = p
+            hit_edge[k] = e_in
+            n += 1
+    # the floor rectangle
+    f_in = -1e300
+    f_out = 1e300
+    if dx != 0.0:
+        a = (floor.x0 - ox) / dx
+        b = (floor.x1 - ox) / dx
+        f_in = max(f_in, min(a, b))
+        f_out = min(f_out, max(a, b))
+    elif not floor.x0 <= ox <= floor.x1:
+        f_out = -1e300
+    if dy != 0.0:
+        a = (floor.y0 - oy) / dy
+        b = (floor.y1 - oy) / dy
+        f_in = max(f_in, min(a, b))
+        f_out = min(f_out, max(a, b))
+    elif not floor.y0 <= oy <= floor.y1:
+        f_out = -1e300
+
+    fy = view.fy
+    cy = view.cy
+    hc = view.cam_z
+    top = view.height - 0.5  # rows above this are still open
+    ns = 0
+    z_a = near
+    h_prev = 0.0 if f_in <= near < f_out else -1.0
+    # active solids at the start (the lens inside a prism's outline: draw from the near plane)
+    cursor = 0
+    while top > -0.5 and ns < MAX_SPANS - 2:
+        # the next event after z_a: an entry, an exit or a floor edge
+        z_b = 1e300
+        while cursor < n and hit_in[cursor] <= z_a:
+            cursor += 1
+        if cursor < n:
+            z_b = hit_in[cursor]
+        for k in range(n):
+            if z_a < hit_out[k] < z_b:
+                z_b = hit_out[k]
+        if z_a < f_in < z_b:
+            z_b = f_in
+        if z_a < f_out < z_b:
+            z_b = f_out
+        z_m = 0.5 * (z_a + z_b) if z_b < 1e299 else z_a + 1.0
+        # the profile's height on (z_a, z_b) and the solid that sets it
+        h = 0.0 if f_in <= z_m < f_out else -1.0
+        best = -1
+        for k in range(n):
+            if hit_in[k] <= z_m < hit_out[k] and solids.height[hit_solid[k]] > h:
+                h = solids.height[hit_solid[k]]
+                best = k
+        if best >= 0 and h > h_prev and hit_in[best] >= z_a - 1e-12 and hit_in[best] > near:
+            face = solids.edge_face[hit_edge[best]]
+            z = hit_in[best]
+            y_hi = cy + fy * (hc - h) / z
+            y_lo = cy + fy * (hc - max(h_prev, 0.0)) / z
+            y1 = min(y_lo, top)
+            if face >= 0 and y_hi < y1:
+                sp_y0[ns] = max(y_hi, -0.5)
+                sp_y1[ns] = y1
+                sp_kind[ns] = _FACE
+                sp_id[ns] = face
+                sp_val[ns] = z
+                ns += 1
+            top = min(top, y_hi)
+        if 0.0 <= h < hc and top > -0.5:
+            y_near = cy + fy * (hc - h) / z_a
+            y_far = cy + fy * (hc - h) / z_b if z_b < _FAR else cy + fy * (hc - h) / _FAR
+            y1 = min(y_near, top)
+            if y_far < y1:
+                sp_y0[ns] = max(y_far, -0.5)
+                sp_y1[ns] = y1
+                sp_kind[ns] = _FLAT
+                sp_id[ns] = hit_solid[best] if best >= 0 else -1
+                sp_val[ns] = h
+                ns += 1
+            top = min(top, y_far)
+        h_prev = h
+        if z_b >= 1e299:
+            break
+        z_a = z_b
+    if top > -0.5:
+        sp_y0[ns] = -0.5
+        sp_y1[ns] = top
+        sp_kind[ns] = _BACKGROUND
+        sp_id[ns] = -2
+        sp_val[ns] = 0.0
+        ns += 1
+    return ns

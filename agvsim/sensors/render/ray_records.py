@@ -1,0 +1,156 @@
+"""What crosses the boundary of the raycaster's compiled kernels: named tuples and enums.
+
+The scene is flattened once per map into the array tuples below (:class:`Solids`,
+:class:`Faces`, :class:`Decals`, :class:`Textures`, :class:`Light`, :class:`Floor`) by
+:mod:`agvsim.sensors.render.raycast`; each frame adds a :class:`View`. Units: metres,
+pixels, radians; map frame x east, y north, z up. This module imports no numba.
+"""
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["Decals", "Faces", "Floor", "Light", "SensorParams", "SpanKind", "Solids", "Textures", "View"]
+
+
+class SpanKind(IntEnum):
+    """What a run of rows of one image column shows."""
+
+    FACE = 0  # a vertical face of a solid (wall piece, obstacle side), decals on it
+    FLAT = 1  # a horizontal surface: the floor (id -1) or the top of a solid (id = solid)
+    BACKGROUND = 2  # nothing: the unmodelled roof / beyond the floor
+
+
+class View(NamedTuple):
+    """One level camera (optical axis horizontal, rows level; thesis §3.5) for one frame.
+
+    A pixel column at image ``x`` is the ray ``C + Z (f + (x - cx) / fx · r)`` in the floor
+    plan, ``Z`` the depth along the optical axis; row ``y`` at depth ``Z`` is at height
+    ``cam_z - (y - cy) Z / fy``.
+    """
+
+    fx: float  # px
+    fy: float  # px
+    cx: float  # px
+    cy: float  # px
+    width: int  # px
+    height: int  # px
+    cam_x: float  # m, lens centre
+    cam_y: float  # m
+    cam_z: float  # m, lens height above the floor
+    fwd_x: float  # unit optical axis in the floor plan
+    fwd_y: float
+    right_x: float  # unit camera x (right) in the floor plan
+    right_y: float
+    level: float  # lighting override (relative), or -1 for the map's zones
+    background_level: float  # lighting level of the background
+    near: float  # m, nothing nearer than this along the axis is drawn
+    subcolumns: int  # sub-column rays of a column that a silhouette crosses
+
+
+class Solids(NamedTuple):
+    """Convex prisms standing on the floor; edge ``e`` of solid ``p`` is ``start[p] <= e < start[p + 1]``."""
+
+    start: np.ndarray  # (P + 1,) int64
+    height: np.ndarray  # (P,) float64, m
+    top_albedo: np.ndarray  # (P,) float64, reflectance of the top
+    edge_x: np.ndarray  # (E,) float64, m, a point of the edge's line
+    edge_y: np.ndarray  # (E,) float64
+    edge_nx: np.ndarray  # (E,) float64, outward unit normal
+    edge_ny: np.ndarray  # (E,) float64
+    edge_face: np.ndarray  # (E,) int64, face index, -1 for an inner edge
+
+
+class Faces(NamedTuple):
+    """Vertical faces: ``s`` (m) runs along the face from its left end seen from the front."""
+
+    x: np.ndarray  # (F,) float64, m, left end
+    y: np.ndarray  # (F,) float64
+    ex: np.ndarray  # (F,) float64, unit direction left -> right
+    ey: np.ndarray  # (F,) float64
+    length: np.ndarray  # (F,) float64, m
+    nx: np.ndarray  # (F,) float64, outward unit normal
+    ny: np.ndarray  # (F,) float64
+    height: np.ndarray  # (F,) float64, m
+    texture: np.ndarray  # (F,) int64
+    u0: np.ndarray  # (F,) float64, texture u at s = 0
+    u1: np.ndarray  # (F,) float64, texture u at s = length
+    v0: np.ndarray  # (F,) float64, texture v at z = 0
+    v1: np.ndarray  # (F,) float64, texture v at z = height
+    decal_start: np.ndarray  # (F + 1,) int64, decals of face f: decal_start[f] .. decal_start[f + 1]
+
+
+class Decals(NamedTuple):
+    """Printed quads on faces, in their face's ``(s, z)``: texture u 0 -> 1 over ``s0 .. s1``."""
+
+    texture: np.ndarray  # (D,) int64
+    s0: np.ndarray  # (D,) float64, m
+    s1: np.ndarray  # (D,) float64, m
+    z0: np.ndarray  # (D,) float64, m
+    z1: np.ndarray  # (D,) float64, m
+
+
+class Textures(NamedTuple):
+    """Every texture twice, flat: its summed-area table (exact box integrals, for decals:
+    texture ``k`` is ``(h + 1) x (w + 1)`` float64 at ``offset[k]``, ``sat[i, j]`` = sum of
+    the texels of rows ``< i`` from the bottom and columns ``< j``) and its mip levels
+    (bilinear samples at the footprint's scale, for wall, obstacle and floor surfaces)."""
+
+    sat: np.ndarray  # (N,) float64
+    offset: np.ndarray  # (T,) int64
+    width: np.ndarray  # (T,) int64, texels
+    height: np.ndarray  # (T,) int64, texels
+    tiled: np.ndarray  # (T,) bool
+    mip: np.ndarray  # (M,) float32, box-filtered mip levels, rows from the bottom (v up)
+    mip_offset: np.ndarray  # (T, L) int64, level l of texture k at mip[mip_offset[k, l]:]
+    mip_width: np.ndarray  # (T, L) int64, texels of level l
+    mip_height: np.ndarray  # (T, L) int64
+    mip_levels: np.ndarray  # (T,) int64, number of levels
+
+
+class Floor(NamedTuple):
+    """The floor rectangle and its tiled texture (``u = x / tile_w``, ``v = y / tile_h``)."""
+
+    x0: float  # m
+    y0: float
+    x1: float
+    y1: float
+    texture: int
+    tile_w: float  # m
+    tile_h: float  # m
+    background: float  # reflectance-equivalent radiance of what is beyond the scene
+
+
+class Light(NamedTuple):
+    """The map's illumination (:class:`agvsim.sensors.render.lighting.Illumination`)."""
+
+    ambient: float
+    lamp_x0: float  # m, lamp (0, 0)
+    lamp_y0: float
+    spacing: float  # m
+    lamp_z: float  # m
+    gain: float
+    zone: np.ndarray  # (R, C) float32 lighting level raster
+    floor_irradiance: np.ndarray  # (R, C) float32 ambient + lamps on the floor, same cells
+    floor_zone_irradiance: np.ndarray  # (R, C) float32 the two multiplied
+    raster_x0: float  # m, centre of cell (0, 0)
+    raster_y0: float
+    raster_res: float  # m per cell
+    face_irr: np.ndarray  # (N,) float32 ambient + lamps on every face, rows of face_cols samples
+    face_offset: np.ndarray  # (F,) int64, face f's table starts at face_irr[face_offset[f]]
+    face_cols: np.ndarray  # (F,) int64, samples along s (every face_res m from s = 0)
+    face_rows: np.ndarray  # (F,) int64, samples up z (every face_res m from z = 0)
+    face_res: float  # m between samples
+
+
+class SensorParams(NamedTuple):
+    """Exposure and noise of one frame (:class:`agvsim.sensors.render.sensor.SensorModel`)."""
+
+    scale: float  # grey levels per unit radiance (gain x exposure)
+    flare: float  # grey levels
+    electrons_per_grey: float  # full well / 255
+    read_noise: float  # grey levels, sigma
+    noise_scale: float  # multiplies both sigmas; 0 = no noise
+    seed: int  # this frame's noise stream (drawn from the run's Generator)

@@ -1,0 +1,295 @@
+"""The compiled column raycaster: radiance and depth of a camera frame without OpenGL.
+
+:class:`RaycastBackend` flattens a :class:`~agvsim.sensors.render.scene.SceneDescription`
+(its solids, decals and textures: the same scene the pyrender backend draws) into the
+arrays of :mod:`agvsim.sensors.render.ray_records` once, then draws each frame with
+:func:`agvsim.sensors.render._raycast_frame.render_view` (numba, one core).
+
+A level camera sees exactly one floor-plan ray per image column (thesis §3.5), so the
+frame is exact, not an approximation; pitch and roll jitter are a rotation about the lens
+centre, drawn as the homography of a level frame rendered a little larger
+(:meth:`RaycastBackend.draw`). Lighting is that of :mod:`agvsim.sensors.render.lighting`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agvsim.sensors.render.lighting import Illumination
+from agvsim.sensors.render.mount import CameraPose
+from agvsim.sensors.render.ray_records import Decals, Faces, Floor, Light, Solids, Textures, View
+from agvsim.sensors.render.scene import SceneDescription
+from agvsim.sensors.render.textures import SURFACE_TILE
+from localizer.camera import Camera
+
+__all__ = ["NEAR", "SUBCOLUMNS", "RaycastBackend"]
+
+NEAR = 0.05  # m, as the pyrender backend's near plane
+SUBCOLUMNS = 4  # sub-column rays of a column that a silhouette crosses
+DECAL_TOLERANCE = 0.005  # m, how far a decal may lie off its wall face
+
+
+class RaycastBackend:
+    """Draws level frames of one scene (create once per map, reuse; holds no GL context).
+
+    Args:
+        scene: the scene (:func:`~agvsim.sensors.render.scene.build_scene`).
+        illumination: the map's lighting.
+        lighting_default: the map's default lighting level (for the background).
+        subcolumns: sub-column rays of columns a silhouette crosses (1..16).
+    """
+
+    supersample = 1  # depth buffers are at the camera's resolution
+
+    def __init__(self, scene: SceneDescription, illumination: Illumination, lighting_default: float,
+                 subcolumns: int = SUBCOLUMNS) -> None:
+        if isinstance(subcolumns, bool) or not isinstance(subcolumns, (int, np.integer)) or not 1 <= subcolumns <= 16:
+            raise ValueError(f"subcolumns must be an integer 1..16, got {subcolumns!r}")
+        self.subcolumns = int(subcolumns)
+        self.lighting_default = float(lighting_default)
+        keys: dict[str, int] = {}
+        self.solids, self.faces, self.decals = _flatten_geometry(scene, keys)
+        floor_key = "surface:floor"
+        keys.setdefault(floor_key, len(keys))
+        tw, th = SURFACE_TILE["floor"]
+        x0, y0, x1, y1 = scene.floor
+        self.floor = Floor(float(x0), float(y0), float(x1), float(y1), keys[floor_key], float(tw), float(th),
+                           float(scene.background))
+        self.textures = _summed_area_tables(scene, keys)
+        self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
+        self.light = _light(illumination, self.faces)
+
+    # --------------------------------------------------------------- frame
+    def view(self, camera: Camera, cam_pose: CameraPose, level: float | None, margin: int = 0) -> View:
+        """The :class:`View` of a level camera at ``cam_pose`` (its jitter ignored), with the
+        image grown by ``margin`` px on every side."""
+        h = cam_pose.heading
+        c, s = math.cos(h), math.sin(h)
+        return View(float(camera.fx), float(camera.fy), float(camera.cx + margin), float(camera.cy + margin),
+                    int(camera.width + 2 * margin), int(camera.height + 2 * margin),
+                    float(cam_pose.position[0]), float(cam_pose.position[1]), float(cam_pose.position[2]),
+                    c, s, s, -c, -1.0 if level is None else float(level),
+                    float(self.lighting_default if level is None else level), NEAR, self.subcolumns)
+
+    def draw_level(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """``(radiance, depth)``, both ``(W, H)`` float32 *transposed*, of a level view."""
+        from agvsim.sensors.render._raycast_frame import render_view
+
+        rad = np.empty((view.width, view.height), np.float32)
+        depth = np.empty((view.width, view.height), np.float32)
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, rad, depth)
+        return rad, depth
+
+    def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """``(radiance, depth)``: ``(W, H)`` float32 arrays, transposed (``a.T`` is the image).
+
+        With pitch/roll jitter the level frame is drawn ``margin`` px larger and resampled
+        through the homography ``K_m J K^-1`` of the rotation ``J`` about the lens centre
+        (bilinear for radiance, nearest for depth, which is converted to the tilted axis).
+        """
+        if cam_pose.pitch == 0.0 and cam_pose.roll == 0.0:
+            return self.draw_level(self.view(camera, cam_pose, level))
+        import cv2
+
+        from agvsim.sensors.render.mount import jitter_rotation
+
+        jit = jitter_rotation(cam_pose.pitch, cam_pose.roll)
+        reach = abs(cam_pose.pitch) * camera.fy + abs(cam_pose.roll) * 0.5 * math.hypot(camera.width, camera.height)
+        margin = int(math.ceil(reach * 1.2)) + 2
+        view = self.view(camera, cam_pose, level, margin)
+        rad_t, depth_t = self.draw_level(view)
+        k = camera.K
+        km = k.copy()
+        km[0, 2] += margin
+        km[1, 2] += margin
+        hom = km @ jit @ np.linalg.inv(k)  # actual pixel -> level pixel
+        size = (camera.width, camera.height)
+        flags = cv2.WARP_INVERSE_MAP
+        rad = cv2.warpPerspective(np.ascontiguousarray(rad_t.T), hom, size, flags=cv2.INTER_LINEAR | flags,
+                                  borderMode=cv2.BORDER_REPLICATE)
+        depth = cv2.warpPerspective(np.ascontiguousarray(depth_t.T), hom, size, flags=cv2.INTER_NEAREST | flags,
+                                    borderMode=cv2.BORDER_REPLICATE)
+        # depth along the tilted axis: Z_act = Z_level / (J (x_n, y_n, 1))_z
+        jj, ii = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+        lam = jit[2, 0] * (jj - camera.cx) / camera.fx + jit[2, 1] * (ii - camera.cy) / camera.fy + jit[2, 2]
+        depth = (depth / lam).astype(np.float32)
+        return np.ascontiguousarray(rad.T), np.ascontiguousarray(depth.T)
+
+
+# ------------------------------------------------------------------ building
+def _flatten_geometry(scene: SceneDescription, keys: dict[str, int]) -> tuple[Solids, Faces, Decals]:
+    def tex(key: str) -> int:
+        return keys.setdefault(key, len(keys))
+
+    start, height, ex, ey, enx, eny, eface = [0], [], [], [], [], [], []
+    fx, fy, fex, fey, flen, fnx, fny, fh, ftex, fu0, fu1, fv0, fv1 = ([] for _ in range(13))
+    for solid in scene.solids:
+        poly = np.asarray(solid.polygon, float)
+        k = len(poly)
+        for a in range(k):
+            p, q = poly[a], poly[(a + 1) % k]
+            d = q - p
+            length = float(np.hypot(*d))
+            e = d / length
+            n = np.array([e[1], -e[0]])  # outward: right of p -> q on a CCW outline
+            ex.append(p[0])
+            ey.append(p[1])
+            enx.append(n[0])
+            eny.append(n[1])
+            look = solid.faces[a]
+            if look is None:
+                eface.append(-1)
+                continue
+            eface.append(len(fx))
+            fx.append(p[0])
+            fy.append(p[1])
+            fex.append(e[0])
+            fey.append(e[1])
+            flen.append(length)
+            fnx.append(n[0])
+            fny.append(n[1])
+            fh.append(solid.height)
+            ftex.append(tex(look.texture))
+            fu0.append(look.u[0])
+            fu1.append(look.u[1])
+            fv0.append(look.v[0])
+            fv1.append(look.v[1])
+        start.append(len(ex))
+        height.append(solid.height)
+    f64 = lambda v: np.ascontiguousarray(v, dtype=np.float64)  # noqa: E731
+    faces_xy = np.column_stack([fx, fy]) if fx else np.zeros((0, 2))
+    # decals: each on the face whose plane it lies in and whose extent holds its centre
+    owners: list[list[tuple]] = [[] for _ in fx]
+    for dec in scene.decals:
+        left, right = np.asarray(dec.left, float), np.asarray(dec.right, float)
+        centre = 0.5 * (left + right)
+        best = None
+        for f in range(len(fx)):
+            if fnx[f] * dec.normal[0] + fny[f] * dec.normal[1] < 0.999:
+                continue
+            rel = centre - faces_xy[f]
+            off = abs(rel[0] * fnx[f] + rel[1] * fny[f])
+            s = rel[0] * fex[f] + rel[1] * fey[f]
+            if off <= DECAL_TOLERANCE and -1e-9 <= s <= flen[f] + 1e-9 and (best is None or off < best[0]):
+                best = (off, f)
+        if best is None:
+            raise ValueError(f"scene {scene.name!r}: decal {dec.texture!r} at ({centre[0]:.3f}, {centre[1]:.3f}) "
+                             "lies on no wall face; expected every target and distractor on a wall surface")
+        f = best[1]
+        s0 = float(np.dot(left - faces_xy[f], (fex[f], fey[f])))
+        s1 = float(np.dot(right - faces_xy[f], (fex[f], fey[f])))
+        owners[f].append((tex(dec.texture), s0, s1, float(dec.z[0]), float(dec.z[1])))
+    dstart, dtex, ds0, ds1, dz0, dz1 = [0], [], [], [], [], []
+    for lst in owners:
+        for t, s0, s1, z0, z1 in lst:
+            dtex.append(t)
+            ds0.append(s0)
+            ds1.append(s1)
+            dz0.append(z0)
+            dz1.append(z1)
+        dstart.append(len(dtex))
+    solids = Solids(np.asarray(start, np.int64), f64(height), np.zeros(len(height)), f64(ex), f64(ey), f64(enx),
+                    f64(eny), np.asarray(eface, np.int64))
+    faces = Faces(f64(fx), f64(fy), f64(fex), f64(fey), f64(flen), f64(fnx), f64(fny), f64(fh),
+                  np.asarray(ftex, np.int64), f64(fu0), f64(fu1), f64(fv0), f64(fv1), np.asarray(dstart, np.int64))
+    decals = Decals(np.asarray(dtex, np.int64), f64(ds0), f64(ds1), f64(dz0), f64(dz1))
+    return solids, faces, decals
+
+
+def _summed_area_tables(scene: SceneDescription, keys: dict[str, int]) -> Textures:
+    """Summed-area tables (float64, rows from the bottom: ``v`` up) of the textures in ``keys``."""
+    tiled = {p.texture: p.tiled for p in scene.parts}
+    order = sorted(keys, key=keys.get)
+    sizes = [(scene.textures[k].shape[0] + 1) * (scene.textures[k].shape[1] + 1) for k in order]
+    offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    sat = np.zeros(int(sum(sizes)), np.float64)
+    width, height = [], []
+    for k, off in zip(order, offset):
+        t = np.asarray(scene.textures[k], np.float64)[::-1]  # row 0 at v = 0
+        h, w = t.shape
+        table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
+        table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
+        width.append(w)
+        height.append(h)
+    levels = [_mip_levels(np.asarray(scene.textures[k], np.float32)[::-1], tiled.get(k, True)) for k in order]
+    n_lev = max(len(lv) for lv in levels)
+    mip_offset = np.zeros((len(order), n_lev), np.int64)
+    mip_w = np.ones((len(order), n_lev), np.int64)
+    mip_h = np.ones((len(order), n_lev), np.int64)
+    chunks, pos = [], 0
+    for k, lv in enumerate(levels):
+        for lvl, img in enumerate(lv):
+            mip_offset[k, lvl] = pos
+            mip_h[k, lvl], mip_w[k, lvl] = img.shape
+            chunks.append(img.ravel())
+            pos += img.size
+    return Textures(sat, offset, np.asarray(width, np.int64), np.asarray(height, np.int64),
+                    np.asarray([tiled.get(k, True) for k in order], np.bool_), np.concatenate(chunks).astype(np.float32),
+                    mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64))
+
+
+def _mip_levels(img: np.ndarray, tiled: bool) -> list[np.ndarray]:
+    """Box-filtered levels of ``img`` down to one texel (each half the size, rounded up)."""
+    import cv2
+
+    out = [np.ascontiguousarray(img, np.float32)]
+    while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
+        prev = out[-1]
+        h, w = prev.shape
+        out.append(cv2.resize(prev, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA))
+    return out
+
+
+def _top_albedo(scene: SceneDescription, keys: dict[str, int]) -> np.ndarray:
+    """Reflectance of each solid's top: its texture sampled bilinearly at the top's ``(u, v)``."""
+    out = []
+    for solid in scene.solids:
+        key, (u, v) = solid.top
+        t = np.asarray(scene.textures[key], np.float64)
+        h, w = t.shape
+        x = (u % 1.0) * w - 0.5
+        y = (1.0 - v % 1.0) * h - 0.5
+        j, i = int(math.floor(x)), int(math.floor(y))
+        fj, fi = x - j, y - i
+        val = 0.0
+        for di, wi in ((0, 1 - fi), (1, fi)):
+            for dj, wj in ((0, 1 - fj), (1, fj)):
+                val += wi * wj * t[(i + di) % h, (j + dj) % w]
+        out.append(val)
+    return np.asarray(out, np.float64)
+
+
+FACE_LIGHT_RES = 0.25  # m between the samples of a face's irradiance table
+
+
+def _light(ill: Illumination, faces: Faces) -> Light:
+    """The kernel's lighting: the zone raster, on the same cells the floor's irradiance, and
+    an irradiance table over every face (lamps are smooth at these scales)."""
+    rows, cols = ill.zone_raster.shape
+    xs = ill.raster_origin[0] + np.arange(cols) * ill.raster_res
+    ys = ill.raster_origin[1] + np.arange(rows) * ill.raster_res
+    gx, gy = np.meshgrid(xs, ys)
+    pts = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
+    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
+    floor_irr = ill.irradiance(pts, up).astype(np.float32)
+    zone = np.ascontiguousarray(ill.zone_raster, np.float32)
+    res = FACE_LIGHT_RES
+    tables, offsets, cols, rows, pos = [], [], [], [], 0
+    for f in range(len(faces.x)):
+        nc = int(math.ceil(faces.length[f] / res)) + 1
+        nr = int(math.ceil(faces.height[f] / res)) + 1
+        ss, zz = np.meshgrid(np.arange(nc) * res, np.arange(nr) * res)
+        p = np.stack([faces.x[f] + ss * faces.ex[f], faces.y[f] + ss * faces.ey[f], zz], axis=-1)
+        n = np.broadcast_to(np.array([faces.nx[f], faces.ny[f], 0.0]), p.shape)
+        tables.append(ill.irradiance(p, n).astype(np.float32).ravel())
+        offsets.append(pos)
+        cols.append(nc)
+        rows.append(nr)
+        pos += nc * nr
+    face_irr = np.concatenate(tables) if tables else np.zeros(1, np.float32)
+    return Light(float(ill.ambient), float(ill.lamp_origin[0]), float(ill.lamp_origin[1]), float(ill.lamp_spacing),
+                 float(ill.lamp_height), float(ill.lamp_gain), zone, np.ascontiguousarray(floor_irr),
+                 np.ascontiguousarray(floor_irr * zone), float(ill.raster_origin[0]), float(ill.raster_origin[1]),
+                 float(ill.raster_res), face_irr, np.asarray(offsets, np.int64), np.asarray(cols, np.int64),
+                 np.asarray(rows, np.int64), res)
