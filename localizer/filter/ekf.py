@@ -148,9 +148,13 @@ class PoseEKF:
 
     def pose(self) -> np.ndarray:
         """(3,) current pose estimate: the state composed with the queued odometry (θ wrapped)."""
-        p = compose(self.kf.x, self._now.u) if self._now.steps else self.kf.x.reshape(-1).copy()
-        p[2] = wrap_angle(float(p[2]))
-        return p
+        x, y, th = self.kf.x.ravel().tolist()
+        now = self._now
+        if now.steps:  # compose(x, now.u), on floats
+            c, s = math.cos(th), math.sin(th)
+            ux, uy = now.ux, now.uy
+            x, y, th = x + c * ux - s * uy, y + s * ux + c * uy, th + now.uphi
+        return np.array([x, y, wrap_angle(th)])
 
     def covariance(self) -> np.ndarray:
         """(3, 3) covariance of :meth:`pose`."""
@@ -194,9 +198,12 @@ class PoseEKF:
         if self.lost:
             return
         P = self.kf.P
-        pos_sigma = math.sqrt(max(float(np.linalg.eigvalsh(P[:2, :2])[-1]), 0.0))
+        # the larger eigenvalue of P_xy (its lower triangle, as numpy's eigvalsh reads it), closed form
+        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+        pos_var = 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)
+        pos_sigma = math.sqrt(max(pos_var, 0.0))
         if (pos_sigma > self.config.lost_position_sigma
-                or math.sqrt(max(float(P[2, 2]), 0.0)) > self.config.lost_heading_sigma
+                or math.sqrt(max(P.item(2, 2), 0.0)) > self.config.lost_heading_sigma
                 or self.rejected_frames >= self.config.lost_rejected_frames):
             self.lost = True
             self.lost_events += 1
@@ -238,7 +245,7 @@ class PoseEKF:
             self.rejected_frames = 0
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
-        self._refresh_now()
+        # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
         return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, False,
                            len(self.relocalizer.hypotheses))
