@@ -208,6 +208,8 @@ class ClosedLoop:
         self.next_frame = self.period  # s
         self.steps = 0
         self._in_flight: deque = deque()  # (ready, capture time, step, observations, observe_ms, yaw rate)
+        self._dt = config.sim.control_dt  # s
+        self._half_track = 0.5 * config.sim.vehicle.track_width  # m
         self.timings = {"sim": 0.0, "observe": 0.0, "filter": 0.0}  # wall seconds
 
     # -- poses -----------------------------------------------------------------
@@ -260,7 +262,7 @@ class ClosedLoop:
         result = self.sim.step(v, omega)
         self.timings["sim"] += time.perf_counter() - t0
         now = self.sim.time
-        dt = self.config.sim.control_dt
+        dt = self._dt
         self.ekf.add_odometry(now, result.ds, result.dtheta)
         if self._odometry_motion is not None:
             self._odometry_motion.add(result.ds, result.dtheta)
@@ -287,7 +289,7 @@ class ClosedLoop:
                 self.ekf.flush(now)
                 self.timings["filter"] += time.perf_counter() - t0
         self.steps += 1
-        half = 0.5 * self.config.sim.vehicle.track_width
+        half = self._half_track
         wheels = ((result.ds - result.dtheta * half) / dt, (result.ds + result.dtheta * half) / dt)
         return LoopStep(result, captured, tuple(fused), wheels)
 
