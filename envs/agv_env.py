@@ -113,6 +113,7 @@ class AGVEnv(gym.Env):
                                     odometry=OdometryErrorModel.preset(self.config.odometry))
         self.metadata = {**self.metadata, "render_fps": int(round(self.config.policy_rate))}
         vp = self.sim_config.vehicle
+        self._limits = np.array([vp.max_speed, vp.max_yaw_rate])  # examples/ read it
         self._v_limit, self._w_limit = float(vp.max_speed), float(vp.max_yaw_rate)
         xmin, ymin, xmax, ymax = self.map.bounds
         span = max(xmax - xmin, ymax - ymin)

@@ -244,7 +244,10 @@ def predict_all(x, targets: TargetMap, mount: CameraMount, limits: ViewLimits | 
     phi = float(x[2]) + mount.yaw
     beta = wrap_angle(phi - np.arctan2(r[:, 1], r[:, 0]))
     alpha = wrap_angle(phi - targets.yaws - math.pi)
-    Z = np.stack([d, beta, alpha], axis=1)
+    Z = np.empty((n, 3))  # np.stack([d, beta, alpha], axis=1), without its overhead
+    Z[:, 0] = d
+    Z[:, 1] = beta
+    Z[:, 2] = alpha
     if limits is None:
         return Z, np.ones(n, dtype=bool)
     gamma = wrap_angle(alpha - beta)
