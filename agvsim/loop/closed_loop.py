@@ -115,7 +115,7 @@ def with_turn_blur(obs, yaw_rate: float, k: tuple[float, float, float]) -> Measu
     w = abs(yaw_rate)
     if w > 0 and any(k):
         extra = np.array([k[0] * w * m.z[0], k[1] * w, k[2] * w])
-        m = Measurement(m.z, m.R + np.diag(extra ** 2), m.polarity)
+        m = m.plus_noise(np.diag(extra ** 2))
     return m
 
 

@@ -158,11 +158,11 @@ class PoseEKF:
 
     def covariance(self) -> np.ndarray:
         """(3, 3) covariance of :meth:`pose`."""
-        if not self._now.steps:
+        now = self._now
+        if not now.steps:
             return self.kf.P.copy()
-        u = self._now.u
-        F, G = compose_jacobians(self.kf.x, u)
-        return F @ self.kf.P @ F.T + G @ self._now.Q @ G.T
+        F, G = compose_jacobians(self.kf.x, (now.ux, now.uy, now.uphi))
+        return F @ self.kf.P @ F.T + G @ now.Q @ G.T
 
     # ------------------------------------------------------------ predict
     def add_odometry(self, t: float, ds: float, dtheta: float) -> None:
@@ -212,10 +212,8 @@ class PoseEKF:
     # ------------------------------------------------------------ update
     def measurement(self, obs) -> Measurement:
         """A :class:`Measurement` from a ``TargetObservation`` (or a Measurement), with the floor added."""
-        if isinstance(obs, Measurement):
-            return Measurement(obs.z, obs.R + self._floor, obs.polarity)
-        m = Measurement.from_observation(obs)
-        return Measurement(m.z, m.R + self._floor, m.polarity)
+        m = obs if isinstance(obs, Measurement) else Measurement.from_observation(obs)
+        return m.plus_noise(self._floor)
 
     def process_frame(self, t_capture: float, observations: Sequence) -> FrameResult:
         """Fuse the observations of a frame captured at ``t_capture`` (s).
