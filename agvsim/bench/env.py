@@ -137,7 +137,7 @@ def format_table(result: dict) -> str:
         lines += ["", "where the wall time goes: ms per simulated second (% of wall)",
                   f"{'config':8}" + "".join(f"{p:>16}" for p in (*PARTS, "total"))]
         for name, r in result["configs"].items():
-            cells = "".join(f"{b['ms_per_sim_second']:9.2f} ({b['percent_of_wall']:3.0f}%)"
+            cells = "".join(f"{b['ms_per_sim_second']:8.2f} ({b['percent_of_wall']:4.1f}%)"
                             for b in (r["breakdown"][p] for p in (*PARTS, "total")))
             lines.append(f"{name:8}{cells}")
         lines.append("physics: Simulation.step (pymunk, encoders, dead reckoning); render: drawing frames; "
