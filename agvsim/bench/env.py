@@ -126,8 +126,8 @@ def run(args) -> dict:
 def format_table(result: dict) -> str:
     machine = result.get("machine", {}).get("cpu_model", "?")
     lines = [f"agvsim bench env — {result['env_id']} (machine: {machine}, one process per config)", "",
-             f"{'config':8}{'observations':>14}{'localization':>14}{'steps':>7}{'steps/s':>10}{'real-time x':>13}"
-             f"{'peak RSS (MB)':>15}"]
+             (f"{'config':8}{'observations':>14}{'localization':>14}{'steps':>7}{'steps/s':>10}"
+              f"{'real-time x':>13}{'peak RSS (MB)':>15}")]
     for name, r in result["configs"].items():
         lines.append(f"{name:8}{r['observations']:>14}{r['localization']:>14}{r['steps']:7d}"
                      f"{r['steps_per_second']:10.1f}{r['real_time_factor']:13.1f}{r['peak_rss_mb']:15.0f}")

@@ -38,7 +38,7 @@ import numpy as np
 from localizer.filter.association import ACCEPTED, Association, GateConfig, associate
 from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
-from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose, compose_jacobians
+from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
 from localizer.filter.update import PoseKF, predict_pose, update_pose
 from localizer.numeric import check_number, check_numbers, wrap_angle
