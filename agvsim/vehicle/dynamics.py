@@ -184,6 +184,7 @@ class DiffDriveVehicle:
         x0, y0 = pos0.x, pos0.y
         a0 = body.angle
         out_ds, out_dtheta, out_wheels = [], [], []
+        ds_append, dtheta_append, wheels_append = out_ds.append, out_dtheta.append, out_wheels.append
         for _ in range(substeps):
             # track(v, omega, dt), with the body's angle known from the previous step
             dv_step = v - v_cmd
@@ -205,9 +206,9 @@ class DiffDriveVehicle:
             mid = a0 + half
             chord = (x1 - x0) * cos(mid) + (y1 - y0) * sin(mid)
             # chord / arc_chord_factor(half)
-            out_ds.append(chord / (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half))
-            out_dtheta.append(a1 - a0)
-            out_wheels.append((v_cmd - w_cmd * half_track, v_cmd + w_cmd * half_track) if touching else None)
+            ds_append(chord / (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half))
+            dtheta_append(a1 - a0)
+            wheels_append((v_cmd - w_cmd * half_track, v_cmd + w_cmd * half_track) if touching else None)
             x0, y0, a0 = x1, y1, a1
         self._v_cmd = v_cmd
         self._w_cmd = w_cmd

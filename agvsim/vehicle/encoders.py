@@ -161,6 +161,7 @@ class EncoderModel:
         quantized = bool(self.ticks_per_rev)
         floor, sqrt = math.floor, math.sqrt
         block, i = self._block, self._next
+        n_block = len(block)
         lefts, rights = [], []
         for step_ds, step_dtheta, commanded in zip(ds, dtheta, wheels):
             s_left = step_ds - step_dtheta * half_track
@@ -169,8 +170,9 @@ class EncoderModel:
                 s_left += slip * (commanded[0] * dt - s_left)
                 s_right += slip * (commanded[1] * dt - s_right)
             if noise:
-                if i + 2 > len(block):  # the next two standard normals from the block
+                if i + 2 > n_block:  # the next two standard normals from the block
                     block = self.rng.standard_normal(_NOISE_BLOCK).tolist()
+                    n_block = len(block)
                     i = 0
                 s_left += noise * sqrt(abs(s_left)) * block[i]
                 s_right += noise * sqrt(abs(s_right)) * block[i + 1]

@@ -72,7 +72,7 @@ class DeadReckoning:
             ds = 0.5 * (s_left + s_right)
             dtheta = (s_right - s_left) / track
             half = 0.5 * dtheta
-            chord = ds * (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half)
+            chord = ds * (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half)  # arc_chord_factor
             heading = theta + half
             x += chord * cos(heading)
             y += chord * sin(heading)
