@@ -250,7 +250,7 @@ class ClosedLoop:
             return np.zeros((3, 3))
         if self.localization == "odometry":
             acc = self._odometry_motion
-            _, G = compose_jacobians(self._start, acc.u)
+            _, G = compose_jacobians(self._start, (acc.ux, acc.uy, acc.uphi))
             return G @ acc.Q @ G.T
         return self.ekf.covariance()
 
