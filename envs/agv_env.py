@@ -113,7 +113,8 @@ class AGVEnv(gym.Env):
                                     odometry=OdometryErrorModel.preset(self.config.odometry))
         self.metadata = {**self.metadata, "render_fps": int(round(self.config.policy_rate))}
         vp = self.sim_config.vehicle
-        self._limits = np.array([vp.max_speed, vp.max_yaw_rate])
+        self._limits = np.array([vp.max_speed, vp.max_yaw_rate])  # examples/ read it
+        self._v_limit, self._w_limit = float(vp.max_speed), float(vp.max_yaw_rate)
         xmin, ymin, xmax, ymax = self.map.bounds
         span = max(xmax - xmin, ymax - ymin)
         big = np.float32(1e6)
@@ -181,24 +182,29 @@ class AGVEnv(gym.Env):
         action = np.asarray(action, dtype=np.float64).reshape(-1)
         if action.shape != (2,):
             raise ValueError(f"action must have shape (2,), got {np.shape(action)}")
-        if not np.all(np.isfinite(action)):
+        a_v, a_w = action.tolist()
+        if not (math.isfinite(a_v) and math.isfinite(a_w)):
             raise ValueError(f"action must be finite, got {action}")
-        v, w = np.clip(action, -1.0, 1.0) * self._limits
+        # np.clip(action, -1, 1) * limits, on floats
+        v = min(max(a_v, -1.0), 1.0) * self._v_limit
+        w = min(max(a_w, -1.0), 1.0) * self._w_limit
         ep = self._episode
-        step = ep.step(float(v), float(w))
+        step = ep.step(v, w)
         self._steps += 1
         if step.captured and ep.last_frame is not None:
             self._frame = ep.last_frame
-        believed = ep.believed_pose
-        for key, pose in (("true", ep.true_pose), ("odometry", ep.odometry_pose), ("estimate", believed)):
-            self._paths[key].append(pose)
+        true_pose, odometry_pose, believed = ep.true_pose, ep.odometry_pose, ep.believed_pose
+        paths = self._paths
+        paths["true"].append(true_pose)
+        paths["odometry"].append(odometry_pose)
+        paths["estimate"].append(believed)
         cfg = self.config
         collided = step.sim.collided
         reward = -cfg.time_cost - cfg.collision_penalty * float(collided) + self.task.reward(ep, step)
         terminated = self.task.is_terminal(ep) or (cfg.terminate_on_collision and collided)
         truncated = False  # the step limit is gymnasium's TimeLimit (max_episode_steps)
-        obs = self._observation(believed, ep.covariance, np.asarray(step.wheel_speeds))
-        info = self._info(step.accepted, step.rejected, collided)
+        obs = self._observation(believed, ep.covariance, step.wheel_speeds)
+        info = self._info(step.accepted, step.rejected, collided, true_pose, believed, odometry_pose)
         return obs, float(reward), bool(terminated), bool(truncated), info
 
     def render(self):
@@ -237,33 +243,41 @@ class AGVEnv(gym.Env):
         self.__init__(render_mode=state["render_mode"], **state["kwargs"])
 
     # -- helpers ---------------------------------------------------------------
-    def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels: np.ndarray) -> dict:
-        goal = np.zeros(3)
+    def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels) -> dict:
+        """Fresh arrays every call (the agent may keep or modify them)."""
+        px, py, pth = pose.tolist()
         if self.task.goal is not None:
             gx, gy, gth = self.task.goal.pose
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            dx, dy = gx - pose[0], gy - pose[1]
-            dth = wrap_angle(float(gth - pose[2]))
-            goal = np.array([c * dx + s * dy, -s * dx + c * dy, dth])
+            c, s = math.cos(pth), math.sin(pth)
+            dx, dy = gx - px, gy - py
+            goal = np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(float(gth - pth))], dtype=np.float32)
+        else:
+            goal = np.zeros(3, dtype=np.float32)
         obs = {
-            "pose": np.asarray(pose, dtype=np.float32).copy(),
-            "covariance": np.asarray(cov, dtype=np.float32).copy(),
-            "goal": goal.astype(np.float32),
-            "wheel_speeds": np.asarray(wheels, dtype=np.float32).copy(),
+            "pose": pose.astype(np.float32),
+            "covariance": cov.astype(np.float32),
+            "goal": goal,
+            "wheel_speeds": np.array(wheels, dtype=np.float32),
         }
         if self.config.observe_image:
             frame = self._frame if self._frame is not None else np.zeros((480, 512), np.uint8)
             obs["image"] = np.asarray(frame, dtype=np.uint8).reshape(480, 512, 1).copy()
         return obs
 
-    def _info(self, accepted: int, rejected: int, collision: bool) -> dict:
+    def _info(self, accepted: int, rejected: int, collision: bool, true_pose: np.ndarray | None = None,
+              est: np.ndarray | None = None, odometry_pose: np.ndarray | None = None) -> dict:
+        """The step's info; the poses, when given, are this step's (copied: the paths keep them)."""
         ep = self._episode
-        true_pose, est = ep.true_pose, ep.believed_pose
+        true_pose = ep.true_pose if true_pose is None else true_pose
+        est = ep.believed_pose if est is None else est
+        odometry_pose = ep.odometry_pose if odometry_pose is None else odometry_pose
+        tx, ty, _ = true_pose.tolist()
+        ex, ey, _ = est.tolist()
         return {
             "true_pose": true_pose.copy(),
             "estimated_pose": est.copy(),
-            "odometry_pose": ep.odometry_pose.copy(),
-            "position_error": float(np.hypot(*(true_pose[:2] - est[:2]))),
+            "odometry_pose": odometry_pose.copy(),
+            "position_error": float(np.hypot(tx - ex, ty - ey)),
             "observations": {"accepted": int(accepted), "rejected": int(rejected)},
             "collision": bool(collision),
         }

@@ -54,7 +54,7 @@ class Task:
         """Distance (m) from the true pose to the goal; 0 without a goal."""
         if self.goal is None:
             return 0.0
-        x, y, _ = loop.true_pose
+        x, y, _ = loop.sim.true_pose  # the same x, y as loop.true_pose, without building an array
         return float(math.hypot(self.goal.pose[0] - x, self.goal.pose[1] - y))
 
 
@@ -97,7 +97,9 @@ class LocalizeTask(Task):
     summary = "stay localized (reward: 1 / (1 + (e / error_scale)^2) for the position error e)"
 
     def reward(self, loop, step) -> float:
-        err = float(np.hypot(*(loop.true_pose[:2] - loop.believed_pose[:2])))
+        tx, ty, _ = loop.sim.true_pose
+        bx, by, _ = loop.believed_pose.tolist()
+        err = float(np.hypot(tx - bx, ty - by))
         return 1.0 / (1.0 + (err / self.config.error_scale) ** 2)
 
 

@@ -70,10 +70,14 @@ class TargetPose:
         """Camera-frame points (m), ``(..., 3)``, of target coordinates ``u``, ``v`` (m, broadcast)."""
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
-        u, v = np.broadcast_arrays(u, v)
-        c = self.centre
+        cx, cy, cz = self.distance * math.sin(self.beta), self.height, self.distance * math.cos(self.beta)  # centre
         ca, sa = math.cos(self.alpha), math.sin(self.alpha)
-        return np.stack([c[0] + u * ca, c[1] + v, c[2] - u * sa], axis=-1)
+        # np.stack of the broadcast coordinates, filled in place (the same values, less overhead)
+        out = np.empty(np.broadcast_shapes(u.shape, v.shape) + (3,))
+        out[..., 0] = cx + u * ca
+        out[..., 1] = cy + v
+        out[..., 2] = cz - u * sa
+        return out
 
 
 def bar_edges_u(bar_width: float) -> np.ndarray:

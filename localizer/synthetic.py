@@ -196,16 +196,22 @@ def in_envelope(camera: Camera, pose: TargetPose, target: TargetSpec = TargetSpe
     ``min_rows`` tall."""
     if pose.z <= target.outer_width:
         return False
-    g = target_outline(camera, pose, target)
-    o = g["outer"]
+    # the parts of target_outline the tests need, computed as it does, each only when reached
+    uo = target.outer_width / 2.0
+    vo = target.outer_height / 2.0
+    o = _project_ideal(camera, pose.points(np.array([-uo, uo, uo, -uo]), np.array([-vo, -vo, vo, vo])))
     if o[:, 0].min() < border_px or o[:, 0].max() > camera.width - 1 - border_px:
         return False
     if o[:, 1].min() < border_px or o[:, 1].max() > camera.height - 1 - border_px:
         return False
-    widths = np.diff(g["edges_x"])
+    b, hh = target.bar_width, target.bar_height / 2.0
+    u = bar_edges_u(b)
+    top = _project_ideal(camera, pose.points(u, -hh))
+    widths = np.diff(top[:, 0])
     if widths.min() < min_bar_px:
         return False
-    return bool((g["bottom_y"] - g["top_y"]).min() >= min_rows)
+    bot = _project_ideal(camera, pose.points(u, hh))
+    return bool((bot[:, 1] - top[:, 1]).min() >= min_rows)
 
 
 def pose_at_column(camera: Camera, distance: float, alpha: float, x_px: float | None = None,

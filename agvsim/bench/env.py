@@ -1,32 +1,55 @@
-"""``agvsim bench env``: Gymnasium environment throughput and memory.
+"""``agvsim bench env``: Gymnasium environment throughput, memory and where the time goes.
 
 Each configuration runs in a fresh process (``spawn``), so its peak resident
 memory is that of one env process: reset, then a fixed number of steps with
 a fixed pseudo-random policy, timed after a short warm-up. Reported: policy
 steps per second on one core, the real-time factor (simulated over wall
-seconds) and the peak RSS of the process.
+seconds), the peak RSS of the process, and a breakdown of the wall time per
+simulated second:
+
+    physics   ``Simulation.step``: pymunk, encoders, dead reckoning
+    render    drawing camera frames (the source's ``timing["render"]``)
+    localize  the rest of the source's ``observe``: finding the targets in the frames
+              (the detector; for ``geometric`` the whole geometric sensor model)
+    filter    odometry into the EKF, predict, associate, update
+    rest      everything else: the env adapter, the task, observations and info, Gymnasium's
+              wrappers, Python glue (the total minus the parts above)
+
+The parts come from :attr:`agvsim.loop.closed_loop.ClosedLoop.timings`
+(``time.perf_counter`` at the seams, summed over the episodes of the run).
 """
 from __future__ import annotations
 
 import multiprocessing as mp
 
 from agvsim.loop.modes import LOCALIZATION_MODES
+from agvsim.sensors.registry import SOURCES
 
 CONFIGS = {
     "state": {"observe_image": False},
     "image": {"observe_image": True},
 }
 
+#: the breakdown's parts, in report order; "rest" is the total minus the others
+PARTS = ("physics", "render", "localize", "filter", "rest")
+#: part -> ClosedLoop.timings key
+_LOOP_KEYS = {"physics": "sim", "render": "render", "localize": "localize", "filter": "filter"}
+
 
 def add_arguments(parser) -> None:
     parser.add_argument("--env-id", default="agvsim/PlantFloor-v0")
     parser.add_argument("--steps", type=int, default=600, help="timed policy steps (default: %(default)s)")
     parser.add_argument("--localization", default="ekf", choices=LOCALIZATION_MODES)
+    parser.add_argument("--observations", default=None, choices=SOURCES,
+                        help="observation source (default: the env's, rendered); the image config "
+                             "is skipped for a source that draws no frames")
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
 
 
-def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
-    import resource
+def measure(env_id: str, kwargs: dict, steps: int, warmup: int = 20) -> dict:
+    """Run ``env_id`` with ``kwargs`` for ``warmup`` + ``steps`` policy steps (fixed actions, seed 0)
+    in this process; the figures of the timed ``steps``, with the breakdown (seconds, ms per
+    simulated second, % of wall)."""
     import time
 
     import gymnasium as gym
@@ -37,45 +60,88 @@ def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
     env = gym.make(env_id, **kwargs)
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    actions = np.clip(rng.normal([0.6, 0.0], [0.3, 0.5], (steps + 20, 2)), -1, 1).astype(np.float32)
-    for a in actions[:20]:  # warm-up (first frame starts the renderer)
+    actions = np.clip(rng.normal([0.6, 0.0], [0.3, 0.5], (steps + warmup, 2)), -1, 1).astype(np.float32)
+    for a in actions[:warmup]:  # warm-up (first frame starts the renderer)
         env.step(a)
+    unwrapped = env.unwrapped
+    keys = tuple(_LOOP_KEYS.values())
+    spent = {k: -unwrapped.loop.timings[k] for k in keys}  # the warm-up's share of the current episode
     t0 = time.perf_counter()
-    for a in actions[20:]:
+    for a in actions[warmup:]:
         _, _, term, trunc, _ = env.step(a)
         if term or trunc:
+            for k in keys:  # the episode's loop goes with the reset
+                spent[k] += unwrapped.loop.timings[k]
             env.reset()
     wall = time.perf_counter() - t0
-    dt = 1.0 / env.unwrapped.config.policy_rate
-    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    for k in keys:
+        spent[k] += unwrapped.loop.timings[k]
+    dt = 1.0 / unwrapped.config.policy_rate
+    observations = unwrapped.config.observations
     env.close()
-    queue.put({"steps": steps, "wall_seconds": wall, "steps_per_second": steps / wall,
-               "real_time_factor": steps * dt / wall, "peak_rss_mb": peak_kib / 1024.0})
+    seconds = {part: spent[key] for part, key in _LOOP_KEYS.items()}
+    seconds["rest"] = wall - sum(seconds.values())
+    simulated = steps * dt
+    breakdown = {part: {"seconds": s, "ms_per_sim_second": 1e3 * s / simulated, "percent_of_wall": 100.0 * s / wall}
+                 for part, s in seconds.items()}
+    breakdown["total"] = {"seconds": wall, "ms_per_sim_second": 1e3 * wall / simulated, "percent_of_wall": 100.0}
+    return {"observations": observations, "steps": steps, "wall_seconds": wall, "steps_per_second": steps / wall,
+            "real_time_factor": simulated / wall, "breakdown": breakdown}
+
+
+def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
+    import resource
+
+    result = measure(env_id, kwargs, steps)
+    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    queue.put({**result, "peak_rss_mb": peak_kib / 1024.0})
 
 
 def run(args) -> dict:
     if args.steps < 1:
         raise ValueError("--steps must be >= 1")
+    from agvsim.sensors.registry import source_class
+
+    observations = getattr(args, "observations", None)
+    draws_frames = source_class(observations).draws_frames if observations else True
     ctx = mp.get_context("spawn")
-    results = {}
+    results, skipped = {}, []
     for name in args.configs:
-        queue = ctx.Queue()
         kwargs = {**CONFIGS[name], "localization": args.localization}
+        if observations:
+            kwargs["observations"] = observations
+        if kwargs.get("observe_image") and not draws_frames:
+            skipped.append(name)
+            continue
+        queue = ctx.Queue()
         proc = ctx.Process(target=_worker, args=(args.env_id, kwargs, args.steps, queue))
         proc.start()
         result = queue.get()
         proc.join()
         results[name] = {**kwargs, **result}
-    return {"benchmark": "env", "env_id": args.env_id, "configs": results,
+    return {"benchmark": "env", "env_id": args.env_id, "configs": results, "skipped": skipped,
             "floor_peak_rss_mb_with_images": 500.0}
 
 
 def format_table(result: dict) -> str:
-    lines = [f"agvsim bench env — {result['env_id']} "
-             f"(machine: {result['machine'].get('cpu_model', '?')}, one process per config)",
-             f"{'config':10}{'localization':>14}{'steps/s':>10}{'real-time x':>13}{'peak RSS (MB)':>15}"]
+    machine = result.get("machine", {}).get("cpu_model", "?")
+    lines = [f"agvsim bench env — {result['env_id']} (machine: {machine}, one process per config)", "",
+             (f"{'config':8}{'observations':>14}{'localization':>14}{'steps':>7}{'steps/s':>10}"
+              f"{'real-time x':>13}{'peak RSS (MB)':>15}")]
     for name, r in result["configs"].items():
-        lines.append(f"{name:10}{r['localization']:>14}{r['steps_per_second']:10.1f}"
-                     f"{r['real_time_factor']:13.1f}{r['peak_rss_mb']:15.0f}")
+        lines.append(f"{name:8}{r['observations']:>14}{r['localization']:>14}{r['steps']:7d}"
+                     f"{r['steps_per_second']:10.1f}{r['real_time_factor']:13.1f}{r['peak_rss_mb']:15.0f}")
+    for name in result.get("skipped", ()):
+        lines.append(f"{name:8}  skipped: the source draws no frames")
+    if result["configs"]:
+        lines += ["", "where the wall time goes: ms per simulated second (% of wall)",
+                  f"{'config':8}" + "".join(f"{p:>16}" for p in (*PARTS, "total"))]
+        for name, r in result["configs"].items():
+            cells = "".join(f"{b['ms_per_sim_second']:8.2f} ({b['percent_of_wall']:4.1f}%)"
+                            for b in (r["breakdown"][p] for p in (*PARTS, "total")))
+            lines.append(f"{name:8}{cells}")
+        lines.append("physics: Simulation.step (pymunk, encoders, dead reckoning); render: drawing frames; "
+                     "localize: finding the targets (the rest of the source's observe); filter: EKF "
+                     "odometry, predict, associate, update; rest: env adapter, task, observations, wrappers")
     lines.append(f"floor: peak RSS <= {result['floor_peak_rss_mb_with_images']:.0f} MB per env process with images")
     return "\n".join(lines)

@@ -115,7 +115,7 @@ def with_turn_blur(obs, yaw_rate: float, k: tuple[float, float, float]) -> Measu
     w = abs(yaw_rate)
     if w > 0 and any(k):
         extra = np.array([k[0] * w * m.z[0], k[1] * w, k[2] * w])
-        m = Measurement(m.z, m.R + np.diag(extra ** 2), m.polarity)
+        m = m.plus_noise(np.diag(extra ** 2))
     return m
 
 
@@ -208,7 +208,13 @@ class ClosedLoop:
         self.next_frame = self.period  # s
         self.steps = 0
         self._in_flight: deque = deque()  # (ready, capture time, step, observations, observe_ms, yaw rate)
-        self.timings = {"sim": 0.0, "observe": 0.0, "filter": 0.0}  # wall seconds
+        self._dt = config.sim.control_dt  # s
+        self._half_track = 0.5 * config.sim.vehicle.track_width  # m
+        #: wall seconds: "sim" (Simulation.step: physics, encoders, dead reckoning), "observe" (the
+        #: source's observe) = "render" (drawing frames, from the source's own ``timing`` when it
+        #: keeps one) + "localize" (the rest of observe: finding the targets), "filter" (odometry
+        #: into the filter, predict, associate, update)
+        self.timings = {"sim": 0.0, "observe": 0.0, "render": 0.0, "localize": 0.0, "filter": 0.0}
 
     # -- poses -----------------------------------------------------------------
     @property
@@ -244,7 +250,7 @@ class ClosedLoop:
             return np.zeros((3, 3))
         if self.localization == "odometry":
             acc = self._odometry_motion
-            _, G = compose_jacobians(self._start, acc.u)
+            _, G = compose_jacobians(self._start, (acc.ux, acc.uy, acc.uphi))
             return G @ acc.Q @ G.T
         return self.ekf.covariance()
 
@@ -256,14 +262,18 @@ class ClosedLoop:
     # -- stepping --------------------------------------------------------------
     def step(self, v: float, omega: float) -> LoopStep:
         """Drive with (v m/s, ω rad/s) for one control step; capture and fuse as due."""
-        t0 = time.perf_counter()
+        perf = time.perf_counter
+        timings = self.timings
+        t0 = perf()
         result = self.sim.step(v, omega)
-        self.timings["sim"] += time.perf_counter() - t0
+        t1 = perf()
         now = self.sim.time
-        dt = self.config.sim.control_dt
+        dt = self._dt
         self.ekf.add_odometry(now, result.ds, result.dtheta)
         if self._odometry_motion is not None:
             self._odometry_motion.add(result.ds, result.dtheta)
+        timings["sim"] += t1 - t0
+        timings["filter"] += perf() - t1
         fused = []
         while self._in_flight and self._in_flight[0][0] <= now + _EPS:
             fused.append(self._fuse(self._in_flight.popleft(), now))
@@ -273,21 +283,27 @@ class ClosedLoop:
                 self.next_frame += self.period
             if self.source is not None:
                 captured = True
-                t0 = time.perf_counter()
+                source_timing = getattr(self.source, "timing", None)  # {"render": s, ...} if it keeps one
+                rendered = source_timing["render"] if source_timing else 0.0
+                t0 = perf()
                 obs = self.source.observe(self.sim.true_pose, self.camera_rng, result.command)
-                obs_ms = (time.perf_counter() - t0) * 1e3
-                self.timings["observe"] += obs_ms / 1e3
+                elapsed = perf() - t0
+                rendered = source_timing["render"] - rendered if source_timing else 0.0
+                timings["observe"] += elapsed
+                timings["render"] += rendered
+                timings["localize"] += elapsed - rendered
+                obs_ms = elapsed * 1e3
                 item = (now + self.latency, now, self.steps, tuple(obs), obs_ms, result.dtheta / dt)
                 if self.latency <= _EPS:
                     fused.append(self._fuse(item, now))
                 else:
                     self._in_flight.append(item)
             elif not self._in_flight:
-                t0 = time.perf_counter()
+                t0 = perf()
                 self.ekf.flush(now)
-                self.timings["filter"] += time.perf_counter() - t0
+                timings["filter"] += perf() - t0
         self.steps += 1
-        half = 0.5 * self.config.sim.vehicle.track_width
+        half = self._half_track
         wheels = ((result.ds - result.dtheta * half) / dt, (result.ds + result.dtheta * half) / dt)
         return LoopStep(result, captured, tuple(fused), wheels)
 

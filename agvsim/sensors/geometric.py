@@ -94,7 +94,7 @@ class GeometricSource:
             out.append(SimObservation(pose.distance + e[0], pose.beta + e[1], pose.alpha + e[2], C,
                                       t.polarity, t.id))
         n_false = int(rng.poisson(nz.false_rate)) if nz.false_rate > 0 else 0
-        half = self.vision.view_limits().half_fov
+        half = self.vision.view_limits().half_fov if n_false else 0.0
         for _ in range(n_false):
             d = float(rng.uniform(1.0, self.vision.max_range))
             beta = float(rng.uniform(-half, half))

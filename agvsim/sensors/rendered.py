@@ -7,6 +7,7 @@ the true pose (lighting zones, sensor noise, motion blur) and
 from __future__ import annotations
 
 import math
+import time
 from typing import ClassVar
 
 import numpy as np
@@ -49,6 +50,7 @@ class RenderedSource:
         self._renderer = None
         self.last_frame: np.ndarray | None = None
         self.last_truth = None
+        self.timing = {"render": 0.0, "localize": 0.0}  # wall seconds in renderer.render, detect_targets
 
     @staticmethod
     def available() -> bool:
@@ -82,7 +84,9 @@ class RenderedSource:
 
         renderer = self._get_renderer()
         cond = RenderConditions(**{**self.conditions, "velocity": (float(command[0]), float(command[1]))})
+        t0 = time.perf_counter()
         image, truth = renderer.render(tuple(float(v) for v in true_pose), cond, rng)
+        self.timing["render"] += time.perf_counter() - t0
         self.last_frame = image
         self.last_truth = truth
         # candidates for labelling detections with the target really seen (evaluation only): the
@@ -97,7 +101,10 @@ class RenderedSource:
                 visible.append((i, TargetPose(t.distance, t.beta, t.alpha, t.height if math.isfinite(t.height) else 0.0)))
         spec = self.map.targets[0].spec if self.map.targets else TargetSpec()
         out = []
-        for o in detect_targets(image, self.camera, spec, method=self.vision.detector):
+        t0 = time.perf_counter()
+        detections = detect_targets(image, self.camera, spec, method=self.vision.detector)
+        self.timing["localize"] += time.perf_counter() - t0
+        for o in detections:
             out.append(SimObservation(o.distance, o.beta, o.alpha, np.asarray(o.covariance), o.polarity,
                                       match_truth(o, visible, self.map)))
         return out

@@ -6,6 +6,7 @@ noise) and :func:`localizer.detect_targets` finds the targets. Real detector, no
 """
 from __future__ import annotations
 
+import time
 from typing import ClassVar
 
 import numpy as np
@@ -44,6 +45,7 @@ class SyntheticFrameSource:
         self.flare = flare
         self.camera = self.vision.camera
         self.last_frame: np.ndarray | None = None
+        self.timing = {"render": 0.0, "localize": 0.0}  # wall seconds in render_frame, detect_targets
 
     def set_exposure(self, factor: float) -> None:
         """Scale the gain and flare of the following frames by ``factor`` (> 0)."""
@@ -70,11 +72,16 @@ class SyntheticFrameSource:
             spec, pols = self.map.targets[0].spec if self.map.targets else None, []
         from localizer.target import TargetSpec
 
+        t0 = time.perf_counter()
         frame = render_frame(self.camera, poses, spec or TargetSpec(), pols, light, self.blur, self.noise,
                              background=0.5, rng=rng)
+        self.timing["render"] += time.perf_counter() - t0
         self.last_frame = frame
         out = []
-        for o in detect_targets(frame, self.camera, spec or TargetSpec(), method=self.vision.detector):
+        t0 = time.perf_counter()
+        detections = detect_targets(frame, self.camera, spec or TargetSpec(), method=self.vision.detector)
+        self.timing["localize"] += time.perf_counter() - t0
+        for o in detections:
             out.append(SimObservation(o.distance, o.beta, o.alpha, np.asarray(o.covariance), o.polarity,
                                       match_truth(o, visible, self.map)))
         return out

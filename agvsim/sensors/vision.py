@@ -75,9 +75,21 @@ class VisionConfig:
         return math.atan(0.5 * cam.width / cam.fx)
 
     def view_limits(self) -> ViewLimits:
-        """The filter's prediction of which targets are in view (horizontal FOV of the lens)."""
+        """The filter's prediction of which targets are in view (horizontal FOV of the lens);
+        one (frozen) instance per configuration."""
+        return self._filter_limits
+
+    @cached_property
+    def _filter_limits(self) -> ViewLimits:
         return ViewLimits(half_fov=self.half_fov, min_range=0.3, max_range=self.max_range + 1.0,
                           max_incidence=min(self.max_incidence + math.radians(5.0), math.pi / 2))
+
+    @cached_property
+    def visibility_limits(self) -> ViewLimits:
+        """Where the camera really sees a target (no margin): the first test of
+        :func:`visible_targets`; one (frozen) instance per configuration."""
+        return ViewLimits(half_fov=self.half_fov, min_range=0.3, max_range=self.max_range,
+                          max_incidence=self.max_incidence, margin=0.0)
 
 
 def targets_from_map(world_map) -> TargetMap:
@@ -99,9 +111,7 @@ def visible_targets(world_map, vision: VisionConfig, true_pose,
         return []
     mount = vision.mount
     cam = vision.camera
-    limits = ViewLimits(half_fov=vision.half_fov, min_range=0.3,
-                        max_range=vision.max_range, max_incidence=vision.max_incidence, margin=0.0)
-    Z, ok = predict_all(np.asarray(true_pose, dtype=float), tm, mount, limits)
+    Z, ok = predict_all(np.asarray(true_pose, dtype=float), tm, mount, vision.visibility_limits)
     if not ok.any():
         return []
     from localizer.synthetic import in_envelope

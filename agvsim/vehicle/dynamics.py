@@ -139,7 +139,8 @@ class DiffDriveVehicle:
 
     def track(self, v: float, omega: float, dt: float) -> None:
         """Like :meth:`apply` for a command already clipped by
-        :meth:`VehicleParams.clip_command` (the per-physics-step hot path)."""
+        :meth:`VehicleParams.clip_command`. :meth:`drive` repeats this arithmetic inline (the
+        hot path): keep the two in step (``tests/vehicle/test_kinematics.py`` compares them)."""
         p = self.params
         dv = p.max_accel * dt
         dw = p.max_yaw_accel * dt
@@ -157,6 +158,61 @@ class DiffDriveVehicle:
             self.control.angular_velocity = w_cmd
         self._v_cmd = v_cmd
         self._w_cmd = w_cmd
+
+    def drive(self, v: float, omega: float, dt: float, substeps: int) -> tuple[list, list, list]:
+        """Track the clipped command (v m/s, ω rad/s) for ``substeps`` physics steps of ``dt`` s,
+        stepping the space: :meth:`track` then ``space.step`` each, in one loop (the hot path).
+
+        Returns ``(ds, dtheta, wheels)``, one entry per physics step: the chassis centre's true
+        arc length (m, from the chord between the poses before and after the step and the mid
+        heading), its true heading change (rad), and the commanded rim speeds (left, right) m/s
+        (:meth:`wheel_speeds`) when the chassis touches a wall or obstacle after the step, else None.
+        """
+        p = self.params
+        dv = p.max_accel * dt
+        dw = p.max_yaw_accel * dt
+        half_track = 0.5 * p.track_width
+        body = self.body
+        control = self.control
+        set_velocity = pymunk.Body.velocity.fset  # the setter itself, without pymunk's __setattr__ hook
+        set_angular_velocity = pymunk.Body.angular_velocity.fset
+        space_step = self.space.step
+        touching = self.contacts.touching  # the monitor's dict (updated in place by its callbacks)
+        cos, sin = math.cos, math.sin
+        v_cmd, w_cmd = self._v_cmd, self._w_cmd
+        pos0 = body.position
+        x0, y0 = pos0.x, pos0.y
+        a0 = body.angle
+        out_ds, out_dtheta, out_wheels = [], [], []
+        ds_append, dtheta_append, wheels_append = out_ds.append, out_dtheta.append, out_wheels.append
+        for _ in range(substeps):
+            # track(v, omega, dt), with the body's angle known from the previous step
+            dv_step = v - v_cmd
+            dv_step = -dv if -dv > dv_step else dv_step
+            v_cmd = v_cmd + (dv if dv < dv_step else dv_step)
+            dw_step = omega - w_cmd
+            dw_step = -dw if -dw > dw_step else dw_step
+            w_new = w_cmd + (dw if dw < dw_step else dw_step)
+            angle = a0 + (body.angular_velocity + 0.5 * w_new) * dt
+            set_velocity(control, (v_cmd * cos(angle), v_cmd * sin(angle)))
+            if w_new != w_cmd:
+                set_angular_velocity(control, w_new)
+            w_cmd = w_new
+            space_step(dt)
+            pos1 = body.position
+            x1, y1 = pos1.x, pos1.y
+            a1 = body.angle
+            half = 0.5 * (a1 - a0)
+            mid = a0 + half
+            chord = (x1 - x0) * cos(mid) + (y1 - y0) * sin(mid)
+            # chord / arc_chord_factor(half)
+            ds_append(chord / (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half))
+            dtheta_append(a1 - a0)
+            wheels_append((v_cmd - w_cmd * half_track, v_cmd + w_cmd * half_track) if touching else None)
+            x0, y0, a0 = x1, y1, a1
+        self._v_cmd = v_cmd
+        self._w_cmd = w_cmd
+        return out_ds, out_dtheta, out_wheels
 
     def stop(self) -> None:
         """Zero the command at once (an emergency stop, no slew)."""

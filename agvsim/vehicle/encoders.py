@@ -130,15 +130,6 @@ class EncoderModel:
         """Encoder counts per radian of wheel rotation."""
         return self._counts_per_rad
 
-    def _normals(self) -> tuple[float, float]:
-        """Two standard normal draws from the current block."""
-        i = self._next
-        if i + 2 > len(self._block):
-            self._block = self.rng.standard_normal(_NOISE_BLOCK).tolist()
-            i = 0
-        self._next = i + 2
-        return self._block[i], self._block[i + 1]
-
     def advance(self, ds: float, dtheta: float, in_contact: bool = False,
                 commanded: tuple[float, float] = (0.0, 0.0), dt: float = 0.0) -> None:
         """Record one physics step of true chassis motion.
@@ -150,17 +141,55 @@ class EncoderModel:
             commanded: commanded rim speeds (left, right) in m/s.
             dt: step length (s), used with ``commanded`` for slip.
         """
-        s_left = ds - dtheta * self._half_track
-        s_right = ds + dtheta * self._half_track
-        if in_contact and self._slip:
-            s_left += self._slip * (commanded[0] * dt - s_left)
-            s_right += self._slip * (commanded[1] * dt - s_right)
-        if self._noise:
-            n_left, n_right = self._normals()
-            s_left += self._noise * math.sqrt(abs(s_left)) * n_left
-            s_right += self._noise * math.sqrt(abs(s_right)) * n_right
-        self._phi_left += s_left / self._r_left
-        self._phi_right += s_right / self._r_right
+        self.advance_steps((ds,), (dtheta,), (commanded if in_contact else None,), dt)
+
+    def advance_steps(self, ds: list, dtheta: list, wheels: list, dt: float) -> tuple[list, list]:
+        """:meth:`advance` then :meth:`counts` for each physics step of a control step, in one loop.
+
+        Args:
+            ds, dtheta: per physics step, the chassis's true arc length (m) and heading change (rad).
+            wheels: per physics step, the commanded rim speeds (left, right) m/s when the chassis
+                is in contact, else None.
+            dt: physics step (s).
+
+        Returns:
+            (left, right): the cumulative counts after each step.
+        """
+        half_track, slip, noise = self._half_track, self._slip, self._noise
+        r_left, r_right, per_rad = self._r_left, self._r_right, self._counts_per_rad
+        phi_left, phi_right = self._phi_left, self._phi_right
+        quantized = bool(self.ticks_per_rev)
+        floor, sqrt = math.floor, math.sqrt
+        block, i = self._block, self._next
+        n_block = len(block)
+        lefts, rights = [], []
+        for step_ds, step_dtheta, commanded in zip(ds, dtheta, wheels):
+            s_left = step_ds - step_dtheta * half_track
+            s_right = step_ds + step_dtheta * half_track
+            if commanded is not None and slip:
+                s_left += slip * (commanded[0] * dt - s_left)
+                s_right += slip * (commanded[1] * dt - s_right)
+            if noise:
+                if i + 2 > n_block:  # the next two standard normals from the block
+                    block = self.rng.standard_normal(_NOISE_BLOCK).tolist()
+                    n_block = len(block)
+                    i = 0
+                s_left += noise * sqrt(abs(s_left)) * block[i]
+                s_right += noise * sqrt(abs(s_right)) * block[i + 1]
+                i += 2
+            phi_left += s_left / r_left
+            phi_right += s_right / r_right
+            left = phi_left * per_rad
+            right = phi_right * per_rad
+            if quantized:
+                lefts.append(float(floor(left)))
+                rights.append(float(floor(right)))
+            else:
+                lefts.append(left)
+                rights.append(right)
+        self._phi_left, self._phi_right = phi_left, phi_right
+        self._block, self._next = block, i
+        return lefts, rights
 
     def counts(self) -> tuple[float, float]:
         """Cumulative counts (left, right) as the encoder interface reports them."""

@@ -56,21 +56,33 @@ class DeadReckoning:
 
     def update_counts(self, left: float, right: float) -> None:
         """Integrate cumulative counts (left, right) since the previous reading."""
-        s_left = (left - self._last_left) * self._metres_per_count
-        s_right = (right - self._last_right) * self._metres_per_count
-        self._last_left = left
-        self._last_right = right
-        ds = 0.5 * (s_left + s_right)
-        dtheta = (s_right - s_left) / self._track
-        half = 0.5 * dtheta
-        chord = ds * arc_chord_factor(half)
-        heading = self.theta + half
-        self.x += chord * math.cos(heading)
-        self.y += chord * math.sin(heading)
-        self.theta += dtheta
-        self._acc_ds += ds
-        self._acc_dtheta += dtheta
-        self.distance += abs(ds)
+        self.update_steps((left,), (right,))
+
+    def update_steps(self, lefts: list, rights: list) -> None:
+        """:meth:`update_counts` for each reading (cumulative counts) of a control step, in one loop."""
+        per_count, track = self._metres_per_count, self._track
+        last_left, last_right = self._last_left, self._last_right
+        x, y, theta = self.x, self.y, self.theta
+        acc_ds, acc_dtheta, distance = self._acc_ds, self._acc_dtheta, self.distance
+        cos, sin = math.cos, math.sin
+        for left, right in zip(lefts, rights):
+            s_left = (left - last_left) * per_count
+            s_right = (right - last_right) * per_count
+            last_left, last_right = left, right
+            ds = 0.5 * (s_left + s_right)
+            dtheta = (s_right - s_left) / track
+            half = 0.5 * dtheta
+            chord = ds * (1.0 - half * half / 6.0 if abs(half) < 1e-4 else sin(half) / half)  # arc_chord_factor
+            heading = theta + half
+            x += chord * cos(heading)
+            y += chord * sin(heading)
+            theta += dtheta
+            acc_ds += ds
+            acc_dtheta += dtheta
+            distance += abs(ds)
+        self._last_left, self._last_right = last_left, last_right
+        self.x, self.y, self.theta = x, y, theta
+        self._acc_ds, self._acc_dtheta, self.distance = acc_ds, acc_dtheta, distance
 
     def take_increment(self) -> tuple[float, float]:
         """(Δs m, Δθ rad) integrated since the last call: what a real AGV controller sees

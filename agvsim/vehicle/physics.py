@@ -21,7 +21,8 @@ class ContactMonitor:
     """Counts the vehicle's contacts; pymunk callbacks update it.
 
     Attributes:
-        touching: ids of the walls/obstacles currently in contact.
+        touching: ids of the walls/obstacles currently in contact (updated in place, never
+            replaced: the vehicle's hot loop holds on to it).
         events: number of contact begins since the monitor was created.
         since_reset: ids touched since the last :meth:`reset_window`.
     """

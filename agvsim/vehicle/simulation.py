@@ -15,7 +15,7 @@ from agvsim.vehicle.physics import build_space
 from localizer.numeric import check_number
 from agvsim.vehicle.dynamics import DiffDriveVehicle, VehicleParams
 from agvsim.vehicle.encoders import EncoderModel, OdometryErrorModel
-from agvsim.vehicle.odometry import DeadReckoning, arc_chord_factor
+from agvsim.vehicle.odometry import DeadReckoning
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,7 @@ class Simulation:
         self.time = 0.0  # s
         self.distance = 0.0  # m, true path length of the chassis centre
         self.steps = 0  # physics steps taken
+        self._physics_dt, self._substeps, self._control_dt = config.physics_dt, config.substeps, config.control_dt
 
     @property
     def true_pose(self) -> tuple[float, float, float]:
@@ -112,43 +113,23 @@ class Simulation:
         if not (math.isfinite(v) and math.isfinite(omega)):  # the hot path stays two float checks
             check_number("command v", v, unit="m/s")
             check_number("command omega", omega, unit="rad/s")
-        dt = self.config.physics_dt
-        vehicle = self.vehicle
-        body = vehicle.body
-        encoders = self.encoders
-        odometry = self.odometry
+        config = self.config
         contacts = self.contacts
         events_before = contacts.events
         contacts.reset_window()
-        space_step = self.space.step
-        track = vehicle.track
-        advance = encoders.advance
-        counts = encoders.counts
-        update = odometry.update_counts
-        cos, sin = math.cos, math.sin
-        v, omega = self.config.vehicle.clip_command(v, omega)
+        v, omega = config.vehicle.clip_command(v, omega)
+        dt = self._physics_dt
+        substeps = self._substeps
+        # physics, then the encoders and dead reckoning over the same physics steps: the
+        # encoders read only the true motion, dead reckoning only the counts
+        ds_steps, dtheta_steps, wheels = self.vehicle.drive(v, omega, dt, substeps)
+        self.odometry.update_steps(*self.encoders.advance_steps(ds_steps, dtheta_steps, wheels, dt))
         distance = 0.0
-        pos0 = body.position
-        a0 = body.angle
-        for _ in range(self.config.substeps):
-            track(v, omega, dt)
-            space_step(dt)
-            pos1 = body.position
-            a1 = body.angle
-            half = 0.5 * (a1 - a0)
-            mid = a0 + half
-            chord = (pos1.x - pos0.x) * cos(mid) + (pos1.y - pos0.y) * sin(mid)
-            ds = chord / arc_chord_factor(half)
-            if contacts.touching:
-                advance(ds, a1 - a0, True, vehicle.wheel_speeds(), dt)
-            else:
-                advance(ds, a1 - a0)
-            update(*counts())
+        for ds in ds_steps:
             distance += abs(ds)
-            pos0, a0 = pos1, a1
         self.distance += distance
-        self.steps += self.config.substeps
-        self.time += self.config.control_dt
-        ds, dtheta = odometry.take_increment()
+        self.steps += substeps
+        self.time += self._control_dt
+        ds, dtheta = self.odometry.take_increment()
         return StepResult(ds, dtheta, (v, omega), frozenset(contacts.since_reset),
                           contacts.events > events_before, bool(contacts.touching))

@@ -85,6 +85,43 @@ def segment_segment_distance(p0, p1, seg_a, seg_b) -> np.ndarray:
     return np.where(segments_cross(p0, p1, seg_a, seg_b), 0.0, dist)
 
 
+def _point_segment_distance_xy(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
+    """:func:`point_segment_distance` of one point and one segment, on floats, operation for
+    operation as numpy does it (so the same to the bit)."""
+    abx, aby = bx - ax, by - ay
+    denom = abx * abx + aby * aby
+    if denom > 0.0:
+        t = ((px - ax) * abx + (py - ay) * aby) / denom
+        t = t if t > 0.0 else 0.0  # np.clip(t, 0, 1) (numpy's max/min order)
+        t = t if t < 1.0 else 1.0
+    else:
+        t = 0.0
+    dx = px - (ax + t * abx)
+    dy = py - (ay + t * aby)
+    return math.sqrt(dx * dx + dy * dy)
+
+
+def segment_segment_distances_xy(p0, p1, segments) -> list[float]:
+    """:func:`segment_segment_distance` of segment ``p0``-``p1`` and each ``segments``
+    ``((ax, ay), (bx, by))``, on floats: the same values to the bit, without numpy's
+    per-call overhead (for a few segments; a long batch is faster vectorised)."""
+    (x0, y0), (x1, y1) = p0, p1
+    dx, dy = x1 - x0, y1 - y0
+    out = []
+    for (ax, ay), (bx, by) in segments:
+        dist = min(_point_segment_distance_xy(x0, y0, ax, ay, bx, by),
+                   _point_segment_distance_xy(x1, y1, ax, ay, bx, by),
+                   _point_segment_distance_xy(ax, ay, x0, y0, x1, y1),
+                   _point_segment_distance_xy(bx, by, x0, y0, x1, y1))
+        ex, ey = bx - ax, by - ay
+        o1 = dx * (ay - y0) - dy * (ax - x0)
+        o2 = dx * (by - y0) - dy * (bx - x0)
+        o3 = ex * (y0 - ay) - ey * (x0 - ax)
+        o4 = ex * (y1 - ay) - ey * (x1 - ax)
+        out.append(0.0 if (o1 * o2 < 0.0 and o3 * o4 < 0.0) else dist)
+    return out
+
+
 def polyline_segments(points) -> np.ndarray:
     """``(N, 2)`` polyline vertices -> ``(N-1, 2, 2)`` segments."""
     pts = np.asarray(points, dtype=float)

@@ -8,6 +8,7 @@ Distances are metres in the map frame.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
 import numpy as np
@@ -68,6 +69,35 @@ class Solids:
         )
 
     # ------------------------------------------------------------ helpers
+
+    @cached_property
+    def _wall_boxes(self) -> np.ndarray:
+        """``(M, 4)`` each wall segment's bounding box grown by its radius: xmin, ymin, xmax, ymax."""
+        s, r = self.wall_segments, self.wall_radius[:, None]
+        return np.concatenate([np.minimum(s[:, 0], s[:, 1]) - r, np.maximum(s[:, 0], s[:, 1]) + r], axis=1)
+
+    @cached_property
+    def _edge_boxes(self) -> np.ndarray:
+        """``(E, 4)`` each obstacle edge's bounding box: xmin, ymin, xmax, ymax."""
+        e = self.edges
+        return np.concatenate([np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])], axis=1)
+
+    @staticmethod
+    def _distances(a: np.ndarray, b: np.ndarray, segments: np.ndarray) -> np.ndarray:
+        """:func:`geo.segment_segment_distance` of a-b to ``segments`` (K, 2, 2): on floats for a
+        few (the usual line of sight: numpy's per-call overhead dominates), vectorised for many."""
+        if len(segments) <= 8:
+            return np.array(geo.segment_segment_distances_xy(a.tolist(), b.tolist(), segments.tolist()))
+        return geo.segment_segment_distance(a, b, segments[:, 0], segments[:, 1])
+
+    @staticmethod
+    def _near(boxes: np.ndarray, a: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray:
+        """Indices of the boxes within ``margin`` of segment a-b's bounding box (a superset of
+        the pieces the segment can come that close to: its distance to a piece is at least the
+        gap between their boxes)."""
+        (x0, y0), (x1, y1) = a.tolist(), b.tolist()
+        return np.nonzero((boxes[:, 0] <= max(x0, x1) + margin) & (boxes[:, 2] >= min(x0, x1) - margin)
+                          & (boxes[:, 1] <= max(y0, y1) + margin) & (boxes[:, 3] >= min(y0, y1) - margin))[0]
 
     def _wall_distances(self, a, b=None) -> np.ndarray:
         """Free distance from a point (or segment a-b) to each wall segment (m)."""
@@ -148,13 +178,21 @@ class Solids:
         """
         a = np.asarray(a, dtype=float)
         b = np.asarray(b, dtype=float)
+        # only the pieces near the segment's bounding box can block it; the distances of those
+        # are computed as for all (element by element, so the same to the bit)
         if len(self.wall_segments):
-            hit = np.nonzero(self._wall_distances(a, b) < -SURFACE_TOLERANCE)[0]
-            if len(hit):
-                return self.wall_ids[self.wall_owner[hit[0]]]
+            near = self._near(self._wall_boxes, a, b, 1e-6)
+            if len(near):
+                d = self._distances(a, b, self.wall_segments[near]) - self.wall_radius[near]
+                hit = near[d < -SURFACE_TOLERANCE]
+                if len(hit):
+                    return self.wall_ids[self.wall_owner[hit[0]]]
         if len(self.edges):
-            d = geo.segment_segment_distance(a, b, self.edges[:, 0], self.edges[:, 1])
-            inside = self._entered(a, b, np.nonzero(d <= geo.EPS)[0])
+            near = self._near(self._edge_boxes, a, b, 1e-6)
+            touching = near
+            if len(near):
+                touching = near[self._distances(a, b, self.edges[near]) <= geo.EPS]
+            inside = self._entered(a, b, touching)
             if inside is not None:
                 return self.obstacle_ids[inside]
         return None

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
@@ -28,7 +29,7 @@ from localizer.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["ACCEPTED", "AMBIGUOUS", "Association", "DUPLICATE", "GATED", "GateConfig", "NO_CANDIDATE",
-           "associate", "innovation"]
+           "associate", "gate_threshold", "innovation"]
 
 ACCEPTED = "accepted"
 GATED = "gated"  # nearest candidate outside the χ² gate
@@ -36,6 +37,13 @@ AMBIGUOUS = "ambiguous"  # two candidates inside the gate
 NO_CANDIDATE = "no_candidate"  # no target predicted in view (with matching polarity)
 DUPLICATE = "duplicate"  # another observation in the frame claimed the same target
 STATUSES = (ACCEPTED, GATED, AMBIGUOUS, NO_CANDIDATE, DUPLICATE)
+
+
+@lru_cache(maxsize=None)
+def gate_threshold(probability: float, dof: int = 3) -> float:
+    """The χ²(``dof``) quantile of ``probability``: the gate on D² (computed once per pair;
+    ``scipy.stats.chi2.ppf`` costs about 0.1 ms a call)."""
+    return float(chi2.ppf(probability, dof))
 
 
 @dataclass(frozen=True)
@@ -62,7 +70,7 @@ class GateConfig:
     @property
     def gate(self) -> float:
         """The gate threshold on D² (χ²(3) quantile)."""
-        return float(chi2.ppf(self.gate_probability, 3))
+        return gate_threshold(self.gate_probability, 3)
 
 
 @dataclass(frozen=True)

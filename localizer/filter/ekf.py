@@ -38,7 +38,7 @@ import numpy as np
 from localizer.filter.association import ACCEPTED, Association, GateConfig, associate
 from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
-from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose, compose_jacobians
+from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
 from localizer.filter.update import PoseKF, predict_pose, update_pose
 from localizer.numeric import check_number, check_numbers, wrap_angle
@@ -148,17 +148,21 @@ class PoseEKF:
 
     def pose(self) -> np.ndarray:
         """(3,) current pose estimate: the state composed with the queued odometry (θ wrapped)."""
-        p = compose(self.kf.x, self._now.u) if self._now.steps else self.kf.x.reshape(-1).copy()
-        p[2] = wrap_angle(float(p[2]))
-        return p
+        x, y, th = self.kf.x.ravel().tolist()
+        now = self._now
+        if now.steps:  # compose(x, now.u), on floats
+            c, s = math.cos(th), math.sin(th)
+            ux, uy = now.ux, now.uy
+            x, y, th = x + c * ux - s * uy, y + s * ux + c * uy, th + now.uphi
+        return np.array([x, y, wrap_angle(th)])
 
     def covariance(self) -> np.ndarray:
         """(3, 3) covariance of :meth:`pose`."""
-        if not self._now.steps:
+        now = self._now
+        if not now.steps:
             return self.kf.P.copy()
-        u = self._now.u
-        F, G = compose_jacobians(self.kf.x, u)
-        return F @ self.kf.P @ F.T + G @ self._now.Q @ G.T
+        F, G = compose_jacobians(self.kf.x, (now.ux, now.uy, now.uphi))
+        return F @ self.kf.P @ F.T + G @ now.Q @ G.T
 
     # ------------------------------------------------------------ predict
     def add_odometry(self, t: float, ds: float, dtheta: float) -> None:
@@ -194,9 +198,12 @@ class PoseEKF:
         if self.lost:
             return
         P = self.kf.P
-        pos_sigma = math.sqrt(max(float(np.linalg.eigvalsh(P[:2, :2])[-1]), 0.0))
+        # the larger eigenvalue of P_xy (its lower triangle, as numpy's eigvalsh reads it), closed form
+        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+        pos_var = 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)
+        pos_sigma = math.sqrt(max(pos_var, 0.0))
         if (pos_sigma > self.config.lost_position_sigma
-                or math.sqrt(max(float(P[2, 2]), 0.0)) > self.config.lost_heading_sigma
+                or math.sqrt(max(P.item(2, 2), 0.0)) > self.config.lost_heading_sigma
                 or self.rejected_frames >= self.config.lost_rejected_frames):
             self.lost = True
             self.lost_events += 1
@@ -205,10 +212,8 @@ class PoseEKF:
     # ------------------------------------------------------------ update
     def measurement(self, obs) -> Measurement:
         """A :class:`Measurement` from a ``TargetObservation`` (or a Measurement), with the floor added."""
-        if isinstance(obs, Measurement):
-            return Measurement(obs.z, obs.R + self._floor, obs.polarity)
-        m = Measurement.from_observation(obs)
-        return Measurement(m.z, m.R + self._floor, m.polarity)
+        m = obs if isinstance(obs, Measurement) else Measurement.from_observation(obs)
+        return m.plus_noise(self._floor)
 
     def process_frame(self, t_capture: float, observations: Sequence) -> FrameResult:
         """Fuse the observations of a frame captured at ``t_capture`` (s).
@@ -238,7 +243,7 @@ class PoseEKF:
             self.rejected_frames = 0
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
-        self._refresh_now()
+        # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
         return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, False,
                            len(self.relocalizer.hypotheses))

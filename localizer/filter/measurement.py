@@ -178,6 +178,18 @@ class Measurement:
         object.__setattr__(self, "z", z)
         object.__setattr__(self, "R", 0.5 * (R + R.T))
 
+    def plus_noise(self, extra: np.ndarray) -> "Measurement":
+        """``Measurement(z, R + extra, polarity)`` for a finite ``extra`` (3, 3) covariance, without
+        re-checking what this measurement already passed (z, shapes): the per-observation hot path."""
+        R = self.R + extra
+        if R.shape != (3, 3) or not np.isfinite(R).all():
+            raise ValueError(f"Measurement.plus_noise: R + extra must be a finite (3, 3) matrix, got {R!r}")
+        m = object.__new__(Measurement)
+        object.__setattr__(m, "z", self.z.copy())
+        object.__setattr__(m, "R", 0.5 * (R + R.T))
+        object.__setattr__(m, "polarity", self.polarity)
+        return m
+
     @classmethod
     def from_observation(cls, obs, floor: np.ndarray | None = None) -> "Measurement":
         """From a :class:`localizer.TargetObservation` (or anything with ``distance``,
@@ -244,7 +256,10 @@ def predict_all(x, targets: TargetMap, mount: CameraMount, limits: ViewLimits | 
     phi = float(x[2]) + mount.yaw
     beta = wrap_angle(phi - np.arctan2(r[:, 1], r[:, 0]))
     alpha = wrap_angle(phi - targets.yaws - math.pi)
-    Z = np.stack([d, beta, alpha], axis=1)
+    Z = np.empty((n, 3))  # np.stack([d, beta, alpha], axis=1), without its overhead
+    Z[:, 0] = d
+    Z[:, 1] = beta
+    Z[:, 2] = alpha
     if limits is None:
         return Z, np.ones(n, dtype=bool)
     gamma = wrap_angle(alpha - beta)

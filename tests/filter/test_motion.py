@@ -65,3 +65,42 @@ def test_noise_model_variances():
         OdometryNoise(wheel_noise=-1.0)
     with pytest.raises(ValueError):
         OdometryAccumulator(n).add(float("nan"), 0.0)
+
+
+def _reference_add(q, u, noise, ds, dth):
+    """OdometryAccumulator.add as it read before it was written out inline: with
+    arc_motion, OdometryNoise.covariance and a quad() helper."""
+    mx, my, mphi = arc_motion(ds, dth)
+    c, s = math.cos(u[2]), math.sin(u[2])
+    f02, f12 = -s * mx - c * my, c * mx - s * my
+    a, b, cc, d, e, f = q
+    a2 = a + 2 * f02 * cc + f02 * f02 * f
+    b2 = b + f02 * e + f12 * cc + f02 * f12 * f
+    c2 = cc + f02 * f
+    d2 = d + 2 * f12 * e + f12 * f12 * f
+    e2 = e + f12 * f
+    vs, cst, vt = noise.covariance(ds, dth)
+    ch, sh = math.cos(0.5 * dth), math.sin(0.5 * dth)
+    gx = (c * ch - s * sh, -0.5 * ds * (c * sh + s * ch))
+    gy = (s * ch + c * sh, 0.5 * ds * (c * ch - s * sh))
+
+    def quad(p, r):
+        return p[0] * r[0] * vs + (p[0] * r[1] + p[1] * r[0]) * cst + p[1] * r[1] * vt
+
+    gphi = (0.0, 1.0)
+    q = [a2 + quad(gx, gx), b2 + quad(gx, gy), c2 + quad(gx, gphi), d2 + quad(gy, gy), e2 + quad(gy, gphi), f + vt]
+    return q, [u[0] + (c * mx - s * my), u[1] + (s * mx + c * my), u[2] + mphi]
+
+
+def test_add_is_arc_motion_and_the_noise_model_to_the_bit():
+    noise = OdometryNoise(wheel_noise=0.002, track_width=0.6, diameter_bias=0.001, wheelbase_bias=0.003,
+                          scale_bias=0.002, correlation=5.0, inflation=1.5)
+    rng = np.random.default_rng(5)
+    acc = OdometryAccumulator(noise)
+    q, u = [0.0] * 6, [0.0, 0.0, 0.0]
+    for k in range(200):
+        ds = float(rng.uniform(-0.15, 0.15)) if k % 7 else 0.0
+        dth = float(rng.uniform(-0.2, 0.2)) if k % 5 else float(rng.uniform(-1e-5, 1e-5))
+        acc.add(ds, dth)
+        q, u = _reference_add(q, u, noise, ds, dth)
+        assert acc.q == q and [acc.ux, acc.uy, acc.uphi] == u

@@ -74,3 +74,18 @@ def test_segment_enters_polygon():
     assert not geo.segment_enters_polygon([-1, 0], [2, 0], square)  # along an edge
     assert not geo.segment_enters_polygon([-1, 1], [1, 3], square)  # grazes a corner
     assert geo.segment_enters_polygon([0.5, 0.5], [0.6, 0.6], square)  # wholly inside
+
+
+def test_the_float_segment_distances_are_numpys_to_the_bit():
+    """``segment_segment_distances_xy`` (line of sight, a few segments) is
+    ``segment_segment_distance`` on floats: the same values, bit for bit."""
+    rng = np.random.default_rng(0)
+    for k in range(600):
+        n = int(rng.integers(1, 6))
+        shape = (2 + 2 * n, 2)
+        # every third case on a coarse grid: touching, collinear and degenerate segments
+        pts = rng.integers(-3, 4, shape).astype(float) if k % 3 == 0 else rng.uniform(-5, 5, shape)
+        segs = pts[2:].reshape(n, 2, 2)
+        expected = geo.segment_segment_distance(pts[0], pts[1], segs[:, 0], segs[:, 1])
+        got = geo.segment_segment_distances_xy(pts[0].tolist(), pts[1].tolist(), segs.tolist())
+        assert got == expected.tolist()
