@@ -453,3 +453,4 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
             akind[k] = bkind[k]
             aid[k] = bid[k]
             aval[k] = bval[k]
+

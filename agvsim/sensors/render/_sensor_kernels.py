@@ -3,19 +3,19 @@
 The same models as :mod:`agvsim.sensors.render.sensor` (which the pyrender backend runs
 in NumPy and OpenCV), written per pixel so that a frame costs a fraction of a millisecond:
 
-* :func:`expose_t`: gain, flare, shot + read noise, saturation, 8 bits. The noise is
+* :func:`expose`: gain, flare, shot + read noise, saturation, 8 bits. The noise is
   Gaussian (Marsaglia and Tsang's ziggurat) from a counter-based generator (SplitMix64
   of the frame's seed and the pixel's index): every frame draws a fresh seed from the
   run's ``numpy.random.Generator``, so frames never share a noise pattern and the same
   seed gives the same frame bit for bit.
-* :func:`motion_blur_t`: each pixel averages the scene along the path its scene point
+* :func:`motion_blur`: each pixel averages the scene along the path its scene point
   takes across the image during the exposure (static scene, the camera's twist, the
   pixel's depth), as :func:`agvsim.sensors.render.sensor.motion_blur`; the path's
   horizontal extent is integrated exactly (row prefix sums), its vertical position is
   taken at the path's midpoint (a level camera moving in the floor plane smears rows
   sideways; the vertical drift is a small fraction of a pixel at AGV speeds).
 
-Images are *transposed* ``(W, H)`` float32 (column-major), as the raycaster draws them.
+Images are ``(H, W)`` float32 (radiance, depth in m along the optical axis, 0 = far).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ import numpy as np
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["ZIGGURAT", "expose_t", "motion_blur_t", "standard_normal_from"]
+__all__ = ["ZIGGURAT", "expose", "motion_blur", "standard_normal_from"]
 
 
 def _ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,24 +108,24 @@ def standard_normal_from(state):
 
 
 @jit
-def expose_t(radiance_t, params, out):
+def expose(radiance, params, out):
     """Radiance -> 8-bit grey (:func:`agvsim.sensors.render.sensor.expose`'s model).
 
     Args:
-        radiance_t: ``(W, H)`` float32 linear radiance, transposed.
+        radiance: ``(H, W)`` float32 linear radiance.
         params: :class:`~agvsim.sensors.render.ray_records.SensorParams`.
         out: ``(H, W)`` uint8, written.
     """
-    w, h = radiance_t.shape
+    h, w = radiance.shape
     scale = params.scale
     flare = params.flare
     inv_e = 1.0 / params.electrons_per_grey
     read2 = params.read_noise * params.read_noise
     ns = params.noise_scale
     seed = np.uint64(params.seed)
-    for j in range(w):
-        for i in range(h):
-            g = radiance_t[j, i] * scale + flare
+    for i in range(h):
+        for j in range(w):
+            g = radiance[i, j] * scale + flare
             if ns > 0.0:
                 state = seed ^ (np.uint64(i * w + j) * _M2)
                 z, state = standard_normal_from(state)
@@ -135,67 +135,69 @@ def expose_t(radiance_t, params, out):
 
 
 @jit
-def motion_blur_t(radiance_t, depth_t, fx, fy, cx, cy, rot_a, tr_a, rot_b, tr_b, out_t, prefix):
+def motion_blur(radiance, depth, fx, fy, cx, cy, rot_a, tr_a, rot_b, tr_b, out, prefix, path):
     """Average each pixel along its scene point's image path between the exposure's ends.
 
     Args:
-        radiance_t, depth_t: ``(W, H)`` float32 (depth m along the axis, 0 = far), transposed.
+        radiance, depth: ``(H, W)`` float32 (depth m along the axis, 0 = far).
         rot_a, tr_a, rot_b, tr_b: ``(3, 3)``, ``(3,)``: camera(t) -> camera(0) motion at the
             start and end of the exposure (camera frame, m).
-        out_t: ``(W, H)`` float32, written. prefix: ``(H, W + 1)`` float64 scratch.
+        out: ``(H, W)`` float32, written. prefix: ``(H, W + 1)`` float64 and path: ``(3, H, W)``
+            float32 scratch.
     """
-    w, h = radiance_t.shape
+    h, w = radiance.shape
     # prefix[i, j] = sum of row i's pixels 0 .. j - 1 (pixel j covers x = j - 0.5 .. j + 0.5)
     for i in range(h):
+        acc = 0.0
         prefix[i, 0] = 0.0
-    for j in range(w):
-        for i in range(h):
-            prefix[i, j + 1] = prefix[i, j] + radiance_t[j, i]
-    for j in range(w):
-        xn = (j - cx) / fx
-        for i in range(h):
-            z = depth_t[j, i]
-            if z <= 0.0:
-                z = 1.0e3
-            yn = (i - cy) / fy
-            X = xn * z
+        for j in range(w):
+            acc += radiance[i, j]
+            prefix[i, j + 1] = acc
+    a00, a01, a02 = rot_a[0, 0], rot_a[0, 1], rot_a[0, 2]
+    a10, a11, a12 = rot_a[1, 0], rot_a[1, 1], rot_a[1, 2]
+    a20, a21, a22 = rot_a[2, 0], rot_a[2, 1], rot_a[2, 2]
+    b00, b01, b02 = rot_b[0, 0], rot_b[0, 1], rot_b[0, 2]
+    b10, b11, b12 = rot_b[1, 0], rot_b[1, 1], rot_b[1, 2]
+    b20, b21, b22 = rot_b[2, 0], rot_b[2, 1], rot_b[2, 2]
+    ta0, ta1, ta2 = tr_a[0], tr_a[1], tr_a[2]
+    tb0, tb1, tb2 = tr_b[0], tr_b[1], tr_b[2]
+    inv_fx = 1.0 / fx
+    inv_fy = 1.0 / fy
+    # pass 1 (vectorised): each pixel's path, x from x0 to x1 at row ym
+    for i in range(h):
+        yn = (i - cy) * inv_fy
+        for j in range(w):
+            z = depth[i, j]
+            z = z if z > 0.0 else 1.0e3
+            X = (j - cx) * inv_fx * z
             Y = yn * z
-            px = rot_a[0, 0] * X + rot_a[0, 1] * Y + rot_a[0, 2] * z + tr_a[0]
-            py = rot_a[1, 0] * X + rot_a[1, 1] * Y + rot_a[1, 2] * z + tr_a[1]
-            pz = max(rot_a[2, 0] * X + rot_a[2, 1] * Y + rot_a[2, 2] * z + tr_a[2], 1e-3)
-            ax = cx + fx * px / pz
-            ay = cy + fy * py / pz
-            px = rot_b[0, 0] * X + rot_b[0, 1] * Y + rot_b[0, 2] * z + tr_b[0]
-            py = rot_b[1, 0] * X + rot_b[1, 1] * Y + rot_b[1, 2] * z + tr_b[1]
-            pz = max(rot_b[2, 0] * X + rot_b[2, 1] * Y + rot_b[2, 2] * z + tr_b[2], 1e-3)
-            bx = cx + fx * px / pz
-            by = cy + fy * py / pz
-            x0 = min(max(min(ax, bx), -0.5), w - 0.5)
-            x1 = min(max(max(ax, bx), -0.5), w - 0.5)
-            ym = min(max(0.5 * (ay + by), 0.0), h - 1.0)
-            r0 = int(ym)
-            r1 = min(r0 + 1, h - 1)
+            pxa = a00 * X + a01 * Y + a02 * z + ta0
+            pya = a10 * X + a11 * Y + a12 * z + ta1
+            qa = 1.0 / max(a20 * X + a21 * Y + a22 * z + ta2, 1e-3)
+            pxb = b00 * X + b01 * Y + b02 * z + tb0
+            pyb = b10 * X + b11 * Y + b12 * z + tb1
+            qb = 1.0 / max(b20 * X + b21 * Y + b22 * z + tb2, 1e-3)
+            ax = cx + fx * pxa * qa
+            bx = cx + fx * pxb * qb
+            lo = min(max(min(ax, bx), -0.5), w - 0.5 - 1e-3)
+            hi = min(max(max(ax, bx), lo + 1e-3), w - 0.5)
+            path[0, i, j] = lo + 0.5
+            path[1, i, j] = hi + 0.5
+            path[2, i, j] = min(max(cy + 0.5 * fy * (pya * qa + pyb * qb), 0.0), h - 1.0)
+    # pass 2: the row integrals (piecewise constant pixels) between x0 and x1, rows blended at ym
+    for i in range(h):
+        for j in range(w):
+            k0 = path[0, i, j]
+            k1 = path[1, i, j]
+            ym = path[2, i, j]
+            r0 = min(int(ym), h - 2)
             fr = ym - r0
-            if x1 - x0 < 1e-3:
-                xm = min(max(0.5 * (x0 + x1), 0.0), w - 1.0)
-                c0 = int(xm)
-                c1 = min(c0 + 1, w - 1)
-                fc = xm - c0
-                v0 = radiance_t[c0, r0] * (1.0 - fc) + radiance_t[c1, r0] * fc
-                v1 = radiance_t[c0, r1] * (1.0 - fc) + radiance_t[c1, r1] * fc
-            else:
-                # the integral of a row from x0 to x1 (piecewise constant pixels)
-                k0 = x0 + 0.5
-                k1 = x1 + 0.5
-                a0 = min(int(k0), w - 1)
-                a1 = min(int(k1), w - 1)
-                f0 = k0 - a0
-                f1 = k1 - a1
-                inv = 1.0 / (x1 - x0)
-                s0 = (prefix[r0, a1] + f1 * (prefix[r0, a1 + 1] - prefix[r0, a1])
-                      - prefix[r0, a0] - f0 * (prefix[r0, a0 + 1] - prefix[r0, a0]))
-                s1 = (prefix[r1, a1] + f1 * (prefix[r1, a1 + 1] - prefix[r1, a1])
-                      - prefix[r1, a0] - f0 * (prefix[r1, a0 + 1] - prefix[r1, a0]))
-                v0 = s0 * inv
-                v1 = s1 * inv
-            out_t[j, i] = v0 * (1.0 - fr) + v1 * fr
+            a0 = min(int(k0), w - 1)
+            a1 = min(int(k1), w - 1)
+            f0 = k0 - a0
+            f1 = k1 - a1
+            s0 = (prefix[r0, a1] + f1 * (prefix[r0, a1 + 1] - prefix[r0, a1])
+                  - prefix[r0, a0] - f0 * (prefix[r0, a0 + 1] - prefix[r0, a0]))
+            s1 = (prefix[r0 + 1, a1] + f1 * (prefix[r0 + 1, a1 + 1] - prefix[r0 + 1, a1])
+                  - prefix[r0 + 1, a0] - f0 * (prefix[r0 + 1, a0 + 1] - prefix[r0 + 1, a0]))
+            out[i, j] = (s0 + (s1 - s0) * fr) / (k1 - k0)

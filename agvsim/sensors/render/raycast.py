@@ -73,16 +73,16 @@ class RaycastBackend:
                     float(self.lighting_default if level is None else level), NEAR, self.subcolumns)
 
     def draw_level(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``, both ``(W, H)`` float32 *transposed*, of a level view."""
+        """``(radiance, depth)``, both ``(H, W)`` float32, of a level view."""
         from agvsim.sensors.render._raycast_frame import render_view
 
-        rad = np.empty((view.width, view.height), np.float32)
-        depth = np.empty((view.width, view.height), np.float32)
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, rad, depth)
-        return rad, depth
+        rad_t = np.empty((view.width, view.height), np.float32)
+        depth_t = np.empty((view.width, view.height), np.float32)
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, rad_t, depth_t)
+        return np.ascontiguousarray(rad_t.T), np.ascontiguousarray(depth_t.T)
 
     def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``: ``(W, H)`` float32 arrays, transposed (``a.T`` is the image).
+        """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing).
 
         With pitch/roll jitter the level frame is drawn ``margin`` px larger and resampled
         through the homography ``K_m J K^-1`` of the rotation ``J`` about the lens centre
@@ -98,7 +98,7 @@ class RaycastBackend:
         reach = abs(cam_pose.pitch) * camera.fy + abs(cam_pose.roll) * 0.5 * math.hypot(camera.width, camera.height)
         margin = int(math.ceil(reach * 1.2)) + 2
         view = self.view(camera, cam_pose, level, margin)
-        rad_t, depth_t = self.draw_level(view)
+        rad_level, depth_level = self.draw_level(view)
         k = camera.K
         km = k.copy()
         km[0, 2] += margin
@@ -106,15 +106,14 @@ class RaycastBackend:
         hom = km @ jit @ np.linalg.inv(k)  # actual pixel -> level pixel
         size = (camera.width, camera.height)
         flags = cv2.WARP_INVERSE_MAP
-        rad = cv2.warpPerspective(np.ascontiguousarray(rad_t.T), hom, size, flags=cv2.INTER_LINEAR | flags,
+        rad = cv2.warpPerspective(rad_level, hom, size, flags=cv2.INTER_LINEAR | flags,
                                   borderMode=cv2.BORDER_REPLICATE)
-        depth = cv2.warpPerspective(np.ascontiguousarray(depth_t.T), hom, size, flags=cv2.INTER_NEAREST | flags,
+        depth = cv2.warpPerspective(depth_level, hom, size, flags=cv2.INTER_NEAREST | flags,
                                     borderMode=cv2.BORDER_REPLICATE)
         # depth along the tilted axis: Z_act = Z_level / (J (x_n, y_n, 1))_z
         jj, ii = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
         lam = jit[2, 0] * (jj - camera.cx) / camera.fx + jit[2, 1] * (ii - camera.cy) / camera.fy + jit[2, 2]
-        depth = (depth / lam).astype(np.float32)
-        return np.ascontiguousarray(rad.T), np.ascontiguousarray(depth.T)
+        return rad, (depth / lam).astype(np.float32)
 
 
 # ------------------------------------------------------------------ building

@@ -224,28 +224,25 @@ class CameraRenderer:
         from agvsim.sensors.render.ray_records import SensorParams
 
         c = self.camera
-        rad_t, depth_t = self.engine.draw(c, cam_pose, conditions.level)
+        radiance, depth = self.engine.draw(c, cam_pose, conditions.level)
         v, w = conditions.velocity
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
-            motion = sn.exposure_motion(c, rad_t.T, depth_t.T, self._camera_twist(pose, v, w, cam_pose),
+            motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time)
             if motion is not None:
                 if self._blur_prefix is None:
-                    self._blur_prefix = np.empty((c.height, c.width + 1))
-                blurred = np.empty_like(rad_t)
-                sk.motion_blur_t(rad_t, depth_t, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, self._blur_prefix)
-                rad_t = blurred
-        optics = conditions.defocus_px > 0 or (conditions.focus_distance is not None and conditions.aperture > 0) \
-            or bool(conditions.distortion and c.dist)
-        if optics:
-            rad_t = np.ascontiguousarray(self._optics(np.ascontiguousarray(rad_t.T), depth_t.T, conditions).T)
+                    self._blur_prefix = (np.empty((c.height, c.width + 1)), np.empty((3, c.height, c.width), np.float32))
+                blurred = np.empty_like(radiance)
+                sk.motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_prefix)
+                radiance = blurred
+        radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
         seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
                               float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)
-        sk.expose_t(rad_t, params, image)
-        return image, depth_t.T
+        sk.expose(radiance, params, image)
+        return image, depth
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
         """Camera linear (m/s) and angular (rad/s) velocity in the camera frame."""
