@@ -136,7 +136,8 @@ class AGVEnv(gym.Env):
         needs_camera = self.config.localization == "ekf" or self.config.observe_image
         # one observation source per env, reused across episodes: a rendered
         # source owns the (lazily created) GL context
-        self._source = make_source(self.config.observations, self.map, self.vision) if needs_camera else None
+        options = {"backend": self.config.render_backend} if self.config.observations == "rendered" else {}
+        self._source = make_source(self.config.observations, self.map, self.vision, **options) if needs_camera else None
         self.task = TASKS[self.config.task](self.config)
         self._episode = None
         self._view = None

@@ -6,6 +6,7 @@ from dataclasses import dataclass, fields
 
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.registry import SOURCES, source_class
+from agvsim.sensors.render.backends import check_backend
 from agvsim.sensors.vision import LENSES_MM
 from agvsim.vehicle.encoders import PRESETS
 from envs.tasks import TASK_NAMES
@@ -30,6 +31,9 @@ class EnvConfig:
             ``rendered`` (pyrender frames and the localizer, the real thing), ``synthetic``
             (warped targets on a plain background and the localizer) or ``geometric`` (true
             target geometry plus noise; fast, for experiments).
+        render_backend: how ``rendered`` frames are drawn, one of
+            :data:`agvsim.sensors.render.backends.BACKENDS`: ``raycast`` (compiled, the default)
+            or ``pyrender`` (OpenGL, the reference).
         camera_mount: where the camera sits on the vehicle, a :class:`localizer.mount.CameraMount`
             or a dict of its fields (m, rad); None: the map's recommended mount (its YAML's
             ``camera_mount``).
@@ -53,6 +57,7 @@ class EnvConfig:
     camera_rate: float = 4.0  # Hz
     camera_latency: float = 0.25  # s
     observations: str = "rendered"
+    render_backend: str = "raycast"
     camera_mount: CameraMount | None = None
     lens: float = 16.0  # mm
     lighting_randomization: float = 0.0  # dimensionless
@@ -69,6 +74,7 @@ class EnvConfig:
         check_choice("EnvConfig.localization", self.localization, LOCALIZATION_MODES)
         check_choice("EnvConfig.odometry", self.odometry, PRESETS)
         check_choice("EnvConfig.observations", self.observations, SOURCES)
+        check_backend(self.render_backend, "EnvConfig.render_backend")
         if isinstance(self.camera_mount, dict):
             known = [f.name for f in fields(CameraMount)]
             unknown = sorted(set(self.camera_mount) - set(known))

@@ -1,4 +1,4 @@
-"""``agvsim bench render``: camera frames per second on this machine (headless EGL, llvmpipe on a CPU).
+"""``agvsim bench render``: camera frames on this machine: pyrender (EGL/llvmpipe) and the raycaster.
 
 Measured in one process with one GL context:
 
@@ -9,7 +9,10 @@ Measured in one process with one GL context:
   on the same scene at 1x;
 * the full :meth:`CameraRenderer.render` (GL + deferred lighting + sensor + truth), with
   supersampling 1 and 2 (the default), median ms per frame over poses along the map's
-  default route.
+  default route;
+* the raycast backend on the same poses in the same run: the level frame alone, and the
+  full ``render()`` still and moving (motion blur), plus its start-up (scene flattening,
+  kernel load or compile).
 """
 from __future__ import annotations
 
@@ -54,22 +57,34 @@ def run(args) -> dict:
     ctx = GLContext()
 
     t0 = time.perf_counter()
-    r2 = CameraRenderer(world_map, camera, supersample=2, context=ctx)
+    r2 = CameraRenderer(world_map, camera, supersample=2, context=ctx, backend="pyrender")
     construct_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     r2.render(poses[0], RenderConditions(), rng)
     first_frame_s = time.perf_counter() - t0
     context_s = ctx.startup_s
-    r1 = CameraRenderer(world_map, camera, supersample=1, context=ctx)
+    r1 = CameraRenderer(world_map, camera, supersample=1, context=ctx, backend="pyrender")
     r1.render(poses[0], RenderConditions(), rng)
 
     def gl_only(renderer):
         def f(p):
-            renderer._render_gl(renderer.camera_pose(p))
+            renderer.engine.render_gl(renderer.camera_pose(p))
         return f
 
+    # the raycaster on the same poses (start-up: scene flattening, then the first frame loads
+    # or compiles the kernels)
+    t0 = time.perf_counter()
+    ray = CameraRenderer(world_map, camera, backend="raycast")
+    ray_construct_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ray.render(poses[0], RenderConditions(velocity=(1.0, 0.5)), rng)
+    ray_first_s = time.perf_counter() - t0
+
+    def ray_level(p):
+        ray.engine.draw(camera, ray.camera_pose(p), None)
+
     # lit PBR pass for comparison (pyrender's own lighting, not used by the renderer)
-    pyrender, scene, node = r1._gl
+    pyrender, scene, node = r1.engine.gl_scene
     lights = [scene.add(pyrender.DirectionalLight(intensity=2.0), pose=_look_down())]
     for k in range(4):
         m = np.eye(4)
@@ -103,6 +118,14 @@ def run(args) -> dict:
                 lambda p: r2.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng), poses),
         },
     }
+    res["raycast"] = {
+        "startup_s": {"renderer_object": ray_construct_s, "first_frame_total": ray_first_s},
+        "level_frame_ms": _median_ms(ray_level, poses),
+        "render_ms": _median_ms(lambda p: ray.render(p, RenderConditions(), rng), poses),
+        "render_motion_blur_ms": _median_ms(
+            lambda p: ray.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng), poses),
+    }
+    res["raycast"]["speed_up_vs_pyrender_default"] = res["render_ms"]["supersample_2"] / res["raycast"]["render_ms"]
     res["fps_default"] = 1000.0 / res["render_ms"]["supersample_2"] if res["render_ms"]["supersample_2"] else math.nan
     ctx.close()
     return res
@@ -148,5 +171,12 @@ def format_table(res: dict) -> str:
         f"  render(), supersample 1          {r['supersample_1']:7.1f}",
         f"  render(), supersample 2 (default){r['supersample_2']:7.1f}",
         f"  render(), ss 2 + motion blur     {r['supersample_2_motion_blur']:7.1f}",
+        "raycast backend, same poses (median ms per frame):",
+        f"  level frame (scene + lighting)   {res['raycast']['level_frame_ms']:7.2f}",
+        f"  render() (+ sensor, truth)       {res['raycast']['render_ms']:7.2f}   "
+        f"({res['raycast']['speed_up_vs_pyrender_default']:.0f}x pyrender's default)",
+        f"  render() + motion blur           {res['raycast']['render_motion_blur_ms']:7.2f}",
+        f"  start-up: scene {res['raycast']['startup_s']['renderer_object']:.2f} s, first frame (kernels) "
+        f"{res['raycast']['startup_s']['first_frame_total']:.2f} s",
     ]
     return "\n".join(lines)

@@ -51,3 +51,12 @@ def add_mount_flag(parser, default: str = "map", flag: str = "--camera-mount") -
                         help="where the camera sits: map (the map's recommended mount), forward, left, right, "
                              "or forward=F,lateral=L,height=H,yaw=Y in m and rad "
                              f"(default: {default})")
+
+
+def add_backend_flag(parser) -> None:
+    """``--backend`` for the renderer of ``rendered`` frames (choices and help from the one list)."""
+    from agvsim.sensors.render.backends import BACKENDS, DEFAULT_BACKEND
+
+    parser.add_argument("--backend", default=DEFAULT_BACKEND, choices=tuple(BACKENDS),
+                        help="renderer of rendered frames: " + "; ".join(f"{k}: {v}" for k, v in BACKENDS.items())
+                        + " (default: %(default)s)")

@@ -16,7 +16,7 @@ BENCHMARKS: dict[str, str] = {
     "sim": "physics + odometry steps per second on one core (no rendering)",
     "localizer": "localizer ms per frame, against ArUco+solvePnP and AprilTag 3",
     "env": "Gymnasium env steps per second, real-time factor and peak memory",
-    "render": "camera frames: ms per 512x480 frame (EGL/llvmpipe) and renderer start-up",
+    "render": "camera frames: ms per 512x480 frame, raycaster and pyrender (EGL/llvmpipe) on the same poses",
 }
 
 

@@ -16,7 +16,7 @@ import math
 import time
 from pathlib import Path
 
-from agvsim.commands._args import add_mount_flag
+from agvsim.commands._args import add_backend_flag, add_mount_flag
 from localizer.numeric import check_number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
@@ -38,6 +38,7 @@ def register(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-vision", action="store_true",
                    help="no camera or filter: steer on the true pose and show dead reckoning alone")
+    add_backend_flag(p)
     p.add_argument("--observations", default="rendered", choices=SOURCES,
                    help="what the camera reports (default: %(default)s, the renderer + localizer)")
     add_mount_flag(p)
@@ -117,7 +118,8 @@ def run(args) -> int:
         run_log = run_mission(world_map, None, rng, mission, progress=progress)
     else:
         mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision)
-        source = make_source(args.observations, world_map, vision)
+        options = {"backend": args.backend} if args.observations == "rendered" else {}
+        source = make_source(args.observations, world_map, vision, **options)
         run_log = run_mission(world_map, source, rng, mission, progress=progress)
         estimate = run_log.estimate
         estimate_error = np.linalg.norm(estimate[:, :2] - run_log.true_pose[:, :2], axis=1)

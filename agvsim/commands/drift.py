@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from agvsim.commands._args import add_mount_flag
+from agvsim.commands._args import add_backend_flag, add_mount_flag
 from localizer.numeric import check_number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
@@ -37,6 +37,7 @@ def register(sub) -> None:
     p.add_argument("--camera-rate", type=float, default=4.0, help="camera frames per second (default: %(default)s)")
     p.add_argument("--latency", type=float, default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
     p.add_argument("--no-vision", action="store_true", help="dead reckoning only (the contrast run)")
+    add_backend_flag(p)
     p.add_argument("--observations", default="rendered", choices=SOURCES,
                    help="observation source: rendered frames + localizer (issue 4 renderer), synthetic "
                         "frames + localizer, or geometric truth + noise (default: %(default)s)")
@@ -74,6 +75,8 @@ def _job(args: dict):
         kw = {}
         if args["observations"] == "geometric":
             kw["noise"] = GeometricNoise(false_rate=args["false_rate"])
+        if args["observations"] == "rendered":
+            kw["backend"] = args["backend"]
         source = make_source(args["observations"], world_map, config.vision_config, **kw)
     queue = args.get("queue")
     last = [0.0]
@@ -168,7 +171,7 @@ def run(args) -> int:
     base = {"map": args.map, "route": args.route, "distance": args.distance, "odometry": args.odometry,
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
             "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
-            "camera_mount": args.camera_mount}
+            "camera_mount": args.camera_mount, "backend": args.backend}
     bar = tqdm(total=round(args.distance * len(seeds)), unit="m", desc="driving", disable=args.no_progress,
                leave=False, file=sys.stderr)
     started = time.perf_counter()

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from agvsim.commands._args import parse_mount
+from agvsim.commands._args import add_backend_flag, parse_mount
 from agvsim.commands._output import add_json_flag, clean_json, emit_json, log
 
 
@@ -15,7 +15,7 @@ def _lighting(text: str):
 
 
 def register(sub) -> None:
-    p = sub.add_parser("render", help="render a camera frame of a map (pyrender, headless)",
+    p = sub.add_parser("render", help="render a camera frame of a map (raycaster or pyrender, headless)",
                        description="Render what the vehicle's camera sees at a pose (map frame: x east, "
                                    "y north, theta CCW from +x; metres and radians) and optionally write "
                                    "the ground truth of every target as JSON.")
@@ -46,6 +46,7 @@ def register(sub) -> None:
                    help="vehicle speed (m/s) and yaw rate (rad/s) during the exposure, for motion blur")
     p.add_argument("--no-noise", action="store_true", help="no sensor noise")
     p.add_argument("--rgb", action="store_true", help="write a 3-channel image instead of grey")
+    add_backend_flag(p)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -66,7 +67,7 @@ def render_frame(args: argparse.Namespace) -> dict:
         mount = parse_mount(args.mount, height=args.camera_height) or world_map.camera_mount
     except argparse.ArgumentTypeError as exc:
         raise ValueError(f"--mount: {exc}") from None
-    renderer = CameraRenderer(world_map, Camera.thesis(args.lens), mount)
+    renderer = CameraRenderer(world_map, Camera.thesis(args.lens), mount, backend=args.backend)
     conditions = RenderConditions(lighting=args.lighting, exposure=args.exposure, defocus_px=args.defocus,
                                   focus_distance=args.focus,
                                   velocity=tuple(args.velocity), noise=not args.no_noise, rgb=args.rgb)

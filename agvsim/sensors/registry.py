@@ -23,7 +23,7 @@ _ENTRY_POINTS: dict[str, str] = {
 
 #: name -> one line for --help and docs.
 SOURCE_HELP: dict[str, str] = {
-    "rendered": "pyrender frames of the scene at the true pose, targets found by the localizer (the real thing)",
+    "rendered": "camera frames of the scene at the true pose (raycaster or pyrender), targets found by the localizer (the real thing)",
     "synthetic": "each visible target warped onto a plain background, found by the localizer (no scene)",
     "geometric": "true (d, beta, alpha) of the visible targets plus noise from a fitted covariance model (fast)",
 }

@@ -1,5 +1,7 @@
 """The ``rendered`` source: frames of the scene from the renderer, targets from the localizer.
 
+The renderer backend is the compiled raycaster by default, pyrender on request.
+
 The real thing: :class:`agvsim.sensors.render.CameraRenderer` draws the frame at
 the true pose (lighting zones, sensor noise, motion blur) and
 :func:`localizer.detect_targets` finds the targets.
@@ -13,6 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from agvsim.sensors.base import SimObservation
+from agvsim.sensors.render.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.vision import VisionConfig, match_truth
 from localizer.geometry import TargetPose
 from localizer.numeric import check_number
@@ -33,14 +36,18 @@ class RenderedSource:
         world_map, vision: as for :class:`GeometricSource`.
         conditions: keyword overrides of :class:`agvsim.sensors.render.RenderConditions`
             (e.g. ``{"defocus_px": 0.5}``); ``velocity`` is filled in per frame.
+        backend: the renderer backend (:data:`agvsim.sensors.render.backends.BACKENDS`):
+            ``"raycast"`` (default, compiled, no OpenGL) or ``"pyrender"`` (the reference).
     """
 
     name: ClassVar[str] = "rendered"
     draws_frames: ClassVar[bool] = True
     has_exposure: ClassVar[bool] = True
 
-    def __init__(self, world_map, vision: VisionConfig | None = None, conditions: dict | None = None) -> None:
+    def __init__(self, world_map, vision: VisionConfig | None = None, conditions: dict | None = None,
+                 backend: str = DEFAULT_BACKEND) -> None:
         self.map = world_map
+        self.backend = check_backend(backend)
         self.vision = (vision or VisionConfig()).for_map(world_map)
         self.conditions = dict(conditions or {})
         if "velocity" in self.conditions:
@@ -69,7 +76,8 @@ class RenderedSource:
                 raise ValueError("the 'rendered' observation source needs the camera renderer "
                                  "(agvsim.sensors.render.CameraRenderer, issue 4), which is not available here "
                                  f"({exc}); use --observations synthetic or geometric") from None
-            self._renderer = CameraRenderer(self.map, camera=self.camera, mount=self.vision.mount)
+            self._renderer = CameraRenderer(self.map, camera=self.camera, mount=self.vision.mount,
+                                            backend=self.backend)
         return self._renderer
 
     def set_exposure(self, factor: float) -> None:

@@ -65,7 +65,7 @@ def hall_renderers(hall, mount, gl_context):
     """``{16: renderer, 50: renderer}`` over the hall, sharing the session's GL context."""
     from agvsim.sensors.render.renderer import CameraRenderer
 
-    return {lens: CameraRenderer(hall, Camera.thesis(lens), mount, context=gl_context) for lens in (16, 50)}
+    return {lens: CameraRenderer(hall, Camera.thesis(lens), mount, context=gl_context, backend="pyrender") for lens in (16, 50)}
 
 
 @pytest.fixture

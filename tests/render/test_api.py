@@ -17,7 +17,7 @@ def test_importing_and_building_a_renderer_opens_no_gl():
         "import sys, agvsim, agvsim.sensors.render, agvsim.sensors.render.renderer, agvsim.cli\n"
         "from agvsim.sensors.render import CameraRenderer, RenderConditions\n"
         "from agvsim.world import load_map\n"
-        "r = CameraRenderer(load_map('corridor'))\n"
+        "r = CameraRenderer(load_map('corridor'), backend='pyrender')\n"
         "agvsim.cli.build_parser()\n"
         "bad = [m for m in ('pyrender', 'OpenGL') if m in sys.modules]\n"
         "assert not bad, bad\n"
@@ -31,7 +31,7 @@ def test_importing_and_building_a_renderer_opens_no_gl():
 def test_bad_render_input_fails_before_any_gl():
     from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
 
-    r = CameraRenderer(load_map("corridor"))
+    r = CameraRenderer(load_map("corridor"), backend="pyrender")
     for pose in ((1.0, 1.0, float("nan")), (1.0, 1.0), (float("inf"), 0.0, 0.0)):
         with pytest.raises(ValueError, match="pose"):
             r.render(pose, RenderConditions(noise=False))
@@ -98,7 +98,7 @@ import os, sys
 import numpy as np
 from agvsim.sensors.render import CameraRenderer, RenderConditions
 from agvsim.world import load_map
-r = CameraRenderer(load_map('corridor'))          # built in the parent, no GL context yet
+r = CameraRenderer(load_map('corridor'), backend='pyrender')          # built in the parent, no GL context yet
 pids = []
 for k in range(2):                                  # like AsyncVectorEnv's workers
     pid = os.fork()
@@ -124,7 +124,7 @@ _HASH_SCRIPT = """
 import hashlib, numpy as np
 from agvsim.sensors.render import CameraRenderer, RenderConditions
 from agvsim.world import load_map
-r = CameraRenderer(load_map('plant_floor'))
+r = CameraRenderer(load_map('plant_floor'), backend='pyrender')
 h = hashlib.sha1()
 for p in [(47.0, 4.0, -1.2), (4.0, 8.5, -1.57), (35.0, 20.0, 0.0)]:
     img, _ = r.render(p, RenderConditions(defocus_px=0.5), np.random.default_rng(5))
@@ -144,7 +144,7 @@ def test_same_seed_same_frame_across_processes_and_contexts(gl_context):
 
     out = subprocess.run([sys.executable, "-c", _HASH_SCRIPT], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    r = CameraRenderer(load_map("plant_floor"), context=gl_context)
+    r = CameraRenderer(load_map("plant_floor"), context=gl_context, backend="pyrender")
     h = hashlib.sha1()
     for p in [(47.0, 4.0, -1.2), (4.0, 8.5, -1.57), (35.0, 20.0, 0.0)]:
         img, _ = r.render(p, RenderConditions(defocus_px=0.5), np.random.default_rng(5))
@@ -159,7 +159,7 @@ def test_closing_one_context_leaves_another_working():
         "from agvsim.sensors.render import CameraRenderer, RenderConditions\n"
         "from agvsim.world import load_map\n"
         "m = load_map('corridor')\n"
-        "a, b = CameraRenderer(m), CameraRenderer(m)\n"
+        "a, b = CameraRenderer(m, backend='pyrender'), CameraRenderer(m, backend='pyrender')\n"
         "ia, _ = a.render((2, 1.5, 0), RenderConditions.ideal())\n"
         "ib, _ = b.render((2, 1.5, 0), RenderConditions.ideal())\n"
         "b.context.close(); del b\n"

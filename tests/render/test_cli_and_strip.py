@@ -66,7 +66,7 @@ def test_camera_strip(tmp_path, gl_context):
     m = load_map("plant_floor")
     mount = CameraMount.side_looking("right")
     poses = route_poses(m, 3, mount=mount)
-    r = CameraRenderer(m, mount=mount, context=gl_context)
+    r = CameraRenderer(m, mount=mount, context=gl_context, backend="pyrender")
     res = save_camera_strip(m, poses, tmp_path / "strip.png", renderer=r, rng=np.random.default_rng(0), columns=3)
     img = cv2.imread(res["path"])
     assert img.shape == (240, 768, 3)

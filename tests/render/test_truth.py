@@ -82,7 +82,7 @@ def test_jitter_moves_the_image_and_the_truth_together(hall, gl_context, rng):
     from localizer import Camera
 
     mount = CameraMount(height=1.2, pitch_sigma=math.radians(1.0), roll_sigma=math.radians(0.5))
-    r = CameraRenderer(hall, Camera.thesis(16), mount, context=gl_context)
+    r = CameraRenderer(hall, Camera.thesis(16), mount, context=gl_context, backend="pyrender")
     vpose = vehicle_pose_for_target(mount, hall.target("P"), 2.0, 0.2, 0.0)
     _, still = r.render(vpose, RenderConditions.ideal())
     image, truth = r.render(vpose, RenderConditions(noise=False, jitter=True), np.random.default_rng(7))
@@ -116,7 +116,7 @@ def test_map_zones_light_the_frame(hall, gl_context, rng):
     from agvsim.sensors.render.mount import CameraMount
     from agvsim.sensors.render.renderer import CameraRenderer
 
-    r = CameraRenderer(hall, mount=CameraMount(height=1.2), context=gl_context)
+    r = CameraRenderer(hall, mount=CameraMount(height=1.2), context=gl_context, backend="pyrender")
     # look at the west wall: first inside the dim corner (y 20..30), then outside it
     dim, _ = r.render((3.5, 25.0, math.pi), RenderConditions.ideal())
     lit, _ = r.render((3.5, 12.0, math.pi), RenderConditions.ideal())
@@ -152,12 +152,12 @@ def test_renderers_of_one_map_share_the_gl_scene(hall, gl_context, hall_renderer
     from agvsim.sensors.render.renderer import CameraRenderer
 
     front = hall_renderers[16]
-    side = CameraRenderer(hall, mount=CameraMount.side_looking("right", height=1.2), context=gl_context)
+    side = CameraRenderer(hall, mount=CameraMount.side_looking("right", height=1.2), context=gl_context, backend="pyrender")
     vpose = vehicle_pose_for_target(mount, hall.target("P"), 3.0, 0.0, 0.0)
     a, _ = front.render(vpose, RenderConditions.ideal())
     s, truth = side.render(vpose, RenderConditions.ideal())
     b, _ = front.render(vpose, RenderConditions.ideal())
-    assert side._gl[1] is front._gl[1]
+    assert side.engine.gl_scene[1] is front.engine.gl_scene[1]
     assert np.array_equal(a, b) and not np.array_equal(a, s)
     assert not truth.target("P").visible  # the side camera looks along the wall
     side.close()
