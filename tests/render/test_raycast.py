@@ -128,8 +128,9 @@ def test_same_seed_same_frame_and_fresh_noise_every_frame(ray_renderers, hall, m
     n1 = b1.astype(int) - clean
     n2 = b2.astype(int) - clean
     assert np.array_equal(b1, a1) and not np.array_equal(b1, b2)
-    # independent patterns: the two frames' noise is uncorrelated, each has the sensor's sigma
-    assert abs(np.corrcoef(n1.ravel(), n2.ravel())[0, 1]) < 0.02
+    # independent patterns: a reused pattern would correlate ~1; what the two differences share is
+    # the rounding of the clean frame (variance 1/12 against the noise's ~2-4: about 0.04)
+    assert abs(np.corrcoef(n1.ravel(), n2.ravel())[0, 1]) < 0.1
     assert 1.0 < n1.std() < 3.0
 
 
@@ -160,11 +161,17 @@ def _route_poses(world_map, n):
 def test_raycast_agrees_with_pyrender_away_from_depth_edges(gl_context):
     import cv2
 
+    from agvsim.sensors.render.scene import build_scene
     from agvsim.world import load_map
+
+    from agvsim.sensors.render.raycast import RaycastBackend
 
     m = load_map("plant_floor")
     ray = CameraRenderer(m, mount=m.camera_mount, backend="raycast")
     gl = CameraRenderer(m, mount=m.camera_mount, context=gl_context, backend="pyrender")
+    # the reference's wall faces sit 2 mm inside the map's surface (so its decals never
+    # depth-fight): draw them there too, or an oblique wall's texture is shifted by 2 mm x tan
+    ray.engine = RaycastBackend(build_scene(m), ray.illumination, m.lighting_default, mesh_geometry=True)
     cond = RenderConditions.ideal()
     shares = []
     for pose in _route_poses(m, 8):

@@ -67,8 +67,68 @@ def _wrap(x, n, inv_n):
 
 
 @inline
+def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf):
+    """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = the mean of the bilinear
+    samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated if
+    tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach. Returns
+    ``(k_lo, a, b)``: texel row coordinate ``a + b y`` at image row ``y`` (centres at integers)."""
+    mw = tex.mip_width[k, lv]
+    mh = tex.mip_height[k, lv]
+    off = tex.mip_offset[k, lv]
+    tiled = tex.tiled[k]
+    # texel row coordinate (centre of row r at r) of image row y: v(y) * mh - 0.5
+    b = -dvz * zpy * mh
+    a = (v0 + dvz * (hc + cy * zpy)) * mh - 0.5
+    ra = a + b * y_lo
+    rb = a + b * y_hi
+    k_lo = int(math.floor(min(ra, rb))) - 1
+    n = min(int(math.floor(max(ra, rb))) + 2 - k_lo + 1, buf.shape[0])
+    # the two subsample columns: texel column coordinates and weights
+    xa = (u_c - u_half) * mw - 0.5
+    xb = (u_c + u_half) * mw - 0.5
+    ja = int(math.floor(xa))
+    jb = int(math.floor(xb))
+    fa = xa - ja
+    fb = xb - jb
+    if tiled:
+        ja0 = ja % mw
+        ja1 = (ja + 1) % mw
+        jb0 = jb % mw
+        jb1 = (jb + 1) % mw
+    else:
+        ja0 = min(max(ja, 0), mw - 1)
+        ja1 = min(max(ja + 1, 0), mw - 1)
+        jb0 = min(max(jb, 0), mw - 1)
+        jb1 = min(max(jb + 1, 0), mw - 1)
+    m = tex.mip
+    row = k_lo % mh if tiled else k_lo
+    for q in range(n):
+        rr = row if tiled else min(max(row, 0), mh - 1)
+        base = off + rr * mw
+        buf[q] = 0.5 * (m[base + ja0] * (1.0 - fa) + m[base + ja1] * fa
+                        + m[base + jb0] * (1.0 - fb) + m[base + jb1] * fb)
+        row += 1
+        if tiled and row == mh:
+            row = 0
+    return float(k_lo), a - k_lo, b
+
+
+@inline
+def _column_at(buf, k_lo, t, n):
+    """Linear interpolation of ``buf`` at texel row coordinate ``t`` (already relative to ``k_lo``)."""
+    if t < 0.0:
+        t = 0.0
+    if t > n - 1.000001:
+        t = n - 1.000001
+    q = int(t)
+    return buf[q] + (buf[q + 1] - buf[q]) * (t - q)
+
+
+@inline
 def _shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc, depth, write_depth,
                 irr_scratch):
+    buf0 = irr_scratch[view.height + 2:view.height + 2 + 4 * view.height + 8]
+    buf1 = irr_scratch[view.height + 2 + 4 * view.height + 8:]
     h_img = view.height
     fy = view.fy
     cy = view.cy
@@ -90,111 +150,66 @@ def _shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc
     inv_step = 1.0 / step
     for m in range(n_l):
         irr_scratch[m] = _face_irradiance(light, f, s_c, hc - (y0 + m * step - cy) * zpy)
-    # the texture: u fixed across the span, v linear in the row
+    # the texture, filtered as the pyrender reference samples it (2 x 2 supersampling, each
+    # sample trilinear at the supersampled footprint): u is fixed across the span and v
+    # linear in the row, so each mip level is a column of texels along the span (buf0, buf1)
     tk = faces.texture[f]
     du = (faces.u1[f] - faces.u0[f]) / faces.length[f]
     dvz = (faces.v1[f] - faces.v0[f]) / faces.height[f]
-    lv = mip_level(tex, tk, max(abs(du * (s_b - s_a)) * tex.width[tk], abs(dvz * zpy) * tex.height[tk]))
-    mw = tex.mip_width[tk, lv]
-    mh = tex.mip_height[tk, lv]
-    moff = tex.mip_offset[tk, lv]
-    tiled = tex.tiled[tk]
-    xt = (faces.u0[f] + du * s_c) * mw - 0.5
-    if tiled:
-        xt = _wrap(xt, mw, 1.0 / mw)
-    else:
-        xt = min(max(xt, 0.0), mw - 1.0)
-    j0 = min(int(xt), mw - 1)
-    fj = xt - j0
-    j1 = j0 + 1 if j0 + 1 < mw else (0 if tiled else mw - 1)
-    # texel row (level lv) at image row y: ty0 + ty1 * y
-    ty1 = -dvz * zpy * mh
-    ty0 = (faces.v0[f] + dvz * (hc + cy * zpy)) * mh - 0.5
-    inv_mh = 1.0 / mh
-    s_lo = min(s_a, s_b)
-    s_hi = max(s_a, s_b)
+    u_c = faces.u0[f] + du * s_c
+    u_half = 0.25 * du * (s_b - s_a)  # texture units from the pixel centre to a subsample
+    rho = 0.5 * max(abs(du * (s_b - s_a)) * tex.width[tk], abs(dvz * zpy) * tex.height[tk])
+    lam = math.log2(rho) if rho > 1.0 else 0.0
+    n_lev = tex.mip_levels[tk]
+    lv0 = min(int(lam), n_lev - 1)
+    lv1 = min(lv0 + 1, n_lev - 1)
+    w1 = (lam - int(lam)) if lv1 > lv0 else 0.0
+    t_lo = min(y0, y1) - 1.0
+    t_hi = max(y0, y1) + 1.0
+    k0a, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf0)
+    k1a, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf1)
+    n0 = buf0.shape[0]
+    n1 = buf1.shape[0]
     d_lo = 1e300
     d_hi = -1e300
+    s_lo = min(s_a, s_b)
+    s_hi = max(s_a, s_b)
     for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
         if decals.s0[d] < s_hi and decals.s1[d] > s_lo:
             d_lo = min(d_lo, decals.z0[d])
             d_hi = max(d_hi, decals.z1[d])
-    mip = tex.mip
     i_lo = max(int(math.floor(y0 + 0.5)), 0)
     i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
-    # rows wholly inside the span and clear of decals take the lean path
-    f0 = max(int(math.ceil(y0 + 0.5)), i_lo)
-    f1 = min(int(math.floor(y1 - 0.5)), i_hi)
-    dec0 = h_img
-    dec1 = -1
-    if d_hi > d_lo:
-        dec0 = int(math.floor(cy + (hc - d_hi) / zpy - 0.5)) - 1
-        dec1 = int(math.ceil(cy + (hc - d_lo) / zpy + 0.5)) + 1
-    ty = ty0 + ty1 * i_lo
-    if tiled:
-        ty = _wrap(ty, mh, inv_mh)
-    q = (i_lo - y0) * inv_step
     for i in range(i_lo, i_hi + 1):
-        if f0 <= i <= f1 and not dec0 <= i <= dec1:
-            # the lean path: a whole row, texel row and lighting advanced by one row
-            if tiled:
-                if ty < 0.0:
-                    ty += mh
-                elif ty >= mh:
-                    ty -= mh
-                tyc = ty
-            else:
-                tyc = min(max(ty, 0.0), mh - 1.0)
-            i0 = int(tyc)
-            if i0 > mh - 1:
-                i0 = mh - 1
-            fi = tyc - i0
-            i1 = i0 + 1 if i0 + 1 < mh else (0 if tiled else mh - 1)
-            r0 = moff + i0 * mw
-            r1 = moff + i1 * mw
-            a0 = mip[r0 + j0] + (mip[r0 + j1] - mip[r0 + j0]) * fj
-            a1 = mip[r1 + j0] + (mip[r1 + j1] - mip[r1 + j0]) * fj
-            m = int(q)
-            if m > n_l - 2:
-                m = n_l - 2
-            t = q - m
-            acc[i] += gain * (a0 + (a1 - a0) * fi) * (irr_scratch[m] + (irr_scratch[m + 1] - irr_scratch[m]) * t)
-            if write_depth:
-                depth[i] = z
-        else:
-            ya = i - 0.5
-            yb = i + 0.5
-            if ya < y0:
-                ya = y0
-            if yb > y1:
-                yb = y1
-            cov = yb - ya
-            if cov > 0.0:
-                ym = 0.5 * (ya + yb)
-                tr = ty0 + ty1 * ym
-                if tiled:
-                    tr = _wrap(tr, mh, inv_mh)
-                else:
-                    tr = min(max(tr, 0.0), mh - 1.0)
-                k0 = min(int(tr), mh - 1)
-                fr = tr - k0
-                k1 = k0 + 1 if k0 + 1 < mh else (0 if tiled else mh - 1)
-                r0 = moff + k0 * mw
-                r1 = moff + k1 * mw
-                alb = ((mip[r0 + j0] * (1.0 - fj) + mip[r0 + j1] * fj) * (1.0 - fr)
-                       + (mip[r1 + j0] * (1.0 - fj) + mip[r1 + j1] * fj) * fr)
-                z_top = hc - (ya - cy) * zpy
-                z_bot = hc - (yb - cy) * zpy
-                if z_top > d_lo and z_bot < d_hi:
-                    alb = decal_cover(faces, decals, tex, f, s_a, s_b, z_bot, z_top, alb)
-                qq = (ym - y0) * inv_step
-                mm = min(int(qq), n_l - 2)
-                tt = qq - mm
-                acc[i] += gain * cov * alb * (irr_scratch[mm] * (1.0 - tt) + irr_scratch[mm + 1] * tt)
-                if write_depth and ya <= i < yb:
-                    depth[i] = z
-        ty += ty1
-        q += inv_step
+        ya = i - 0.5
+        yb = i + 0.5
+        if ya < y0:
+            ya = y0
+        if yb > y1:
+            yb = y1
+        cov = yb - ya
+        if cov <= 0.0:
+            continue
+        ym = 0.5 * (ya + yb)
+        # two subsample rows, trilinear between the span's two levels
+        ta = ym - 0.25
+        tb = ym + 0.25
+        alb = (1.0 - w1) * 0.5 * (_column_at(buf0, k0a - 0.0, t0a + t0b * ta, n0)
+                                  + _column_at(buf0, k0a - 0.0, t0a + t0b * tb, n0))
+        if w1 > 0.0:
+            alb += w1 * 0.5 * (_column_at(buf1, k1a, t1a + t1b * ta, n1) + _column_at(buf1, k1a, t1a + t1b * tb, n1))
+        z_top = hc - (ya - cy) * zpy
+        z_bot = hc - (yb - cy) * zpy
+        if z_top > d_lo and z_bot < d_hi:
+            alb = decal_cover(faces, decals, tex, f, s_a, s_b, z_bot, z_top, alb)
+        qq = (ym - y0) * inv_step
+        mm = int(qq)
+        if mm > n_l - 2:
+            mm = n_l - 2
+        tt = qq - mm
+        acc[i] += gain * cov * alb * (irr_scratch[mm] + (irr_scratch[mm + 1] - irr_scratch[mm]) * tt)
+        if write_depth and ya <= i < yb:
+            depth[i] = z
 
 
 @inline
@@ -414,7 +429,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     mval = np.empty(MAX_SPANS)
     acc = np.zeros(h)
     dcol = np.zeros(h, np.float32)
-    scratch = np.empty(h + 2)
+    scratch = np.empty(h + 2 + 2 * (4 * h + 8))  # irradiance samples, two texel columns
     n_a = cast_ray(view, solids, floor, -0.5, items[start[0]:], start[1] - start[0], hit_in, hit_out,
                    hit_solid, hit_edge, ay0, ay1, akind, aid, aval)
     sub = max(view.subcolumns, 1)

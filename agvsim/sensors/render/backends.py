@@ -6,7 +6,7 @@ from localizer.numeric import check_choice
 
 #: backend name -> one-line description (CLI help and docs read this)
 BACKENDS: dict[str, str] = {
-    "raycast": "compiled column raycaster: exact for the level camera, ~1-2 ms per frame, no OpenGL (default)",
+    "raycast": "compiled column raycaster: exact for the level camera, no OpenGL (default)",
     "pyrender": "OpenGL through pyrender (EGL/llvmpipe headless): the reference and the general 3-D path",
 }
 DEFAULT_BACKEND = "raycast"

@@ -38,18 +38,21 @@ class RaycastBackend:
         illumination: the map's lighting.
         lighting_default: the map's default lighting level (for the background).
         subcolumns: sub-column rays of columns a silhouette crosses (1..16).
+        mesh_geometry: draw the wall faces where the OpenGL meshes have them
+            (:attr:`Solid.mesh_inset`, 2 mm inside the map's surface) instead of on the map's
+            surface; only for comparisons with the pyrender reference.
     """
 
     supersample = 1  # depth buffers are at the camera's resolution
 
     def __init__(self, scene: SceneDescription, illumination: Illumination, lighting_default: float,
-                 subcolumns: int = SUBCOLUMNS) -> None:
+                 subcolumns: int = SUBCOLUMNS, mesh_geometry: bool = False) -> None:
         if isinstance(subcolumns, bool) or not isinstance(subcolumns, (int, np.integer)) or not 1 <= subcolumns <= 16:
             raise ValueError(f"subcolumns must be an integer 1..16, got {subcolumns!r}")
         self.subcolumns = int(subcolumns)
         self.lighting_default = float(lighting_default)
         keys: dict[str, int] = {}
-        self.solids, self.faces, self.decals = _flatten_geometry(scene, keys)
+        self.solids, self.faces, self.decals = _flatten_geometry(scene, keys, bool(mesh_geometry))
         floor_key = "surface:floor"
         keys.setdefault(floor_key, len(keys))
         tw, th = SURFACE_TILE["floor"]
@@ -117,7 +120,8 @@ class RaycastBackend:
 
 
 # ------------------------------------------------------------------ building
-def _flatten_geometry(scene: SceneDescription, keys: dict[str, int]) -> tuple[Solids, Faces, Decals]:
+def _flatten_geometry(scene: SceneDescription, keys: dict[str, int], mesh_geometry: bool = False
+                      ) -> tuple[Solids, Faces, Decals]:
     def tex(key: str) -> int:
         return keys.setdefault(key, len(keys))
 
@@ -132,6 +136,8 @@ def _flatten_geometry(scene: SceneDescription, keys: dict[str, int]) -> tuple[So
             length = float(np.hypot(*d))
             e = d / length
             n = np.array([e[1], -e[0]])  # outward: right of p -> q on a CCW outline
+            if mesh_geometry and solid.mesh_inset:
+                p = p - n * solid.mesh_inset[a]
             ex.append(p[0])
             ey.append(p[1])
             enx.append(n[0])
@@ -170,9 +176,9 @@ def _flatten_geometry(scene: SceneDescription, keys: dict[str, int]) -> tuple[So
             rel = centre - faces_xy[f]
             off = abs(rel[0] * fnx[f] + rel[1] * fny[f])
             s = rel[0] * fex[f] + rel[1] * fey[f]
-            if off <= DECAL_TOLERANCE and -1e-9 <= s <= flen[f] + 1e-9 and (best is None or off < best[0]):
+            if off <= DECAL_TOLERANCE + (0.0025 if mesh_geometry else 0.0) and -1e-9 <= s <= flen[f] + 1e-9 and (best is None or off < best[0]):
                 best = (off, f)
-        if best is None:
+        if best is None and not mesh_geometry:
             raise ValueError(f"scene {scene.name!r}: decal {dec.texture!r} at ({centre[0]:.3f}, {centre[1]:.3f}) "
                              "lies on no wall face; expected every target and distractor on a wall surface")
         f = best[1]

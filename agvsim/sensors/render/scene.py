@@ -95,12 +95,15 @@ class Solid:
         height: m.
         faces: per edge, its :class:`FaceLook` (None for an edge inside a split polygon).
         top: ``(texture key, (u, v))``: the top is drawn in that one texel of the texture.
+        mesh_inset: per edge, how far the OpenGL mesh's face sits inside this outline (m;
+            :data:`WALL_INSET` on a wall's long sides, so decals never depth-fight with it).
     """
 
     polygon: np.ndarray
     height: float
     faces: tuple[FaceLook | None, ...]
     top: tuple[str, tuple[float, float]]
+    mesh_inset: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -319,7 +322,7 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
             end = FaceLook(plain, (0.0, 2 * rm / tw_), (0.0, h / th_), True)
             solids.append(Solid(np.array([a - nl * rm, b - nl * rm, b + nl * rm, a + nl * rm], float), h,
                                 (side, end, FaceLook(key, (u_of(s0 + L), u_of(s0)), v, not stretched), end),
-                                (plain, (0.0, 0.0))))
+                                (plain, (0.0, 0.0)), (rm - r, 0.0, rm - r, 0.0)))
             s0 += L
 
     # obstacles
