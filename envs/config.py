@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields
 
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.registry import SOURCES, source_class
-from agvsim.sensors.render.backends import check_backend
+from agvsim.sensors.backends import check_backend
 from agvsim.sensors.vision import LENSES_MM
 from agvsim.vehicle.encoders import PRESETS
 from envs.tasks import TASK_NAMES
@@ -32,7 +32,7 @@ class EnvConfig:
             (warped targets on a plain background and the localizer) or ``geometric`` (true
             target geometry plus noise; fast, for experiments).
         render_backend: how ``rendered`` frames are drawn, one of
-            :data:`agvsim.sensors.render.backends.BACKENDS`: ``raycast`` (compiled, the default)
+            :data:`agvsim.sensors.backends.BACKENDS`: ``raycast`` (compiled, the default)
             or ``pyrender`` (OpenGL, the reference).
         camera_mount: where the camera sits on the vehicle, a :class:`localizer.mount.CameraMount`
             or a dict of its fields (m, rad); None: the map's recommended mount (its YAML's

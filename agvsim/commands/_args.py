@@ -55,7 +55,7 @@ def add_mount_flag(parser, default: str = "map", flag: str = "--camera-mount") -
 
 def add_backend_flag(parser) -> None:
     """``--backend`` for the renderer of ``rendered`` frames (choices and help from the one list)."""
-    from agvsim.sensors.render.backends import BACKENDS, DEFAULT_BACKEND
+    from agvsim.sensors.backends import BACKENDS, DEFAULT_BACKEND
 
     parser.add_argument("--backend", default=DEFAULT_BACKEND, choices=tuple(BACKENDS),
                         help="renderer of rendered frames: " + "; ".join(f"{k}: {v}" for k, v in BACKENDS.items())

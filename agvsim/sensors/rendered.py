@@ -15,7 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from agvsim.sensors.base import SimObservation
-from agvsim.sensors.render.backends import DEFAULT_BACKEND, check_backend
+from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.vision import VisionConfig, match_truth
 from localizer.geometry import TargetPose
 from localizer.numeric import check_number
@@ -36,7 +36,7 @@ class RenderedSource:
         world_map, vision: as for :class:`GeometricSource`.
         conditions: keyword overrides of :class:`agvsim.sensors.render.RenderConditions`
             (e.g. ``{"defocus_px": 0.5}``); ``velocity`` is filled in per frame.
-        backend: the renderer backend (:data:`agvsim.sensors.render.backends.BACKENDS`):
+        backend: the renderer backend (:data:`agvsim.sensors.backends.BACKENDS`):
             ``"raycast"`` (default, compiled, no OpenGL) or ``"pyrender"`` (the reference).
     """
 

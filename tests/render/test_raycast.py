@@ -136,12 +136,12 @@ def test_same_seed_same_frame_and_fresh_noise_every_frame(ray_renderers, hall, m
 
 def test_sensor_noise_is_gaussian_with_the_models_sigma():
     """The compiled generator: mean 0, unit variance, Gaussian tails (ziggurat)."""
-    from agvsim.sensors.render import _sensor_kernels as sk
+    from agvsim.sensors.render._sensor_kernels import expose
     from agvsim.sensors.render.ray_records import SensorParams
 
     radiance = np.full((400, 500), 0.5, np.float32)
     out = np.empty(radiance.shape, np.uint8)
-    sk.expose(radiance, SensorParams(200.0, 5.0, 20000.0 / 255.0, 0.8, 10.0, 12345), out)
+    expose(radiance, SensorParams(200.0, 5.0, 20000.0 / 255.0, 0.8, 10.0, 12345), out)
     grey = out.astype(float)
     sigma = 10.0 * math.sqrt(105.0 / (20000.0 / 255.0) + 0.64)
     z = (grey - 105.0) / sigma

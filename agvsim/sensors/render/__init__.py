@@ -21,8 +21,8 @@ from localizer.lazy import lazy_exports
 
 _LAZY = {
     "CameraRenderer": "agvsim.sensors.render.renderer",
-    "BACKENDS": "agvsim.sensors.render.backends",
-    "DEFAULT_BACKEND": "agvsim.sensors.render.backends",
+    "BACKENDS": "agvsim.sensors.backends",
+    "DEFAULT_BACKEND": "agvsim.sensors.backends",
     "RenderConditions": "agvsim.sensors.render.renderer",
     "CameraMount": "agvsim.sensors.render.mount",
     "CameraPose": "agvsim.sensors.render.mount",

@@ -124,7 +124,6 @@ class PyrenderBackend:
         scene.main_camera_node = node
         scene.set_pose(node, cam_pose.gl_pose())
         color, depth = off.render(scene, flags=pyrender.RenderFlags.FLAT)
-        _release_texture_sources(scene)
         albedo = color[..., 0].astype(np.float32) * np.float32(1.0 / 255.0)
         if s > 1:
             albedo = cv2.resize(albedo, (self.camera.width, self.camera.height), interpolation=cv2.INTER_AREA)
@@ -215,19 +214,3 @@ def _normals_from_points(pts: np.ndarray, depth: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
     n = n / np.maximum(norm, 1e-12)
     return n.astype(np.float32)
-
-
-def _release_texture_sources(scene) -> None:
-    """Drop the CPU copies of textures already uploaded to the GL context.
-
-    pyrender keeps each texture's source array after upload; the GL
-    context (one per process, never recreated) holds its own copy, so the
-    source is dead weight (about 25 MB for ``plant_floor``). Textures not yet
-    uploaded (no GL texture id) keep theirs.
-    """
-    for mesh in scene.meshes:
-        for prim in mesh.primitives:
-            tex = getattr(prim.material, "baseColorTexture", None)
-            if tex is not None and tex.source is not None and getattr(tex, "_texid", None) is not None:
-                tex.source = None
-

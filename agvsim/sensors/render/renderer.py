@@ -6,7 +6,7 @@
     >>> image, truth = r.render((30.0, 4.0, -1.5708), RenderConditions(), np.random.default_rng(0))
     >>> [t.id for t in truth.visible]
 
-One renderer per world, reused for every frame. Backends (:data:`agvsim.sensors.render.backends.BACKENDS`):
+One renderer per world, reused for every frame. Backends (:data:`agvsim.sensors.backends.BACKENDS`):
 
 * ``raycast`` (default): the compiled column raycaster (:mod:`agvsim.sensors.render.raycast`),
   exact for the level camera, no OpenGL;
@@ -30,7 +30,7 @@ from localizer.numeric import check_number
 
 from localizer.camera import Camera
 from agvsim.sensors.render import sensor as sn
-from agvsim.sensors.render.backends import DEFAULT_BACKEND, check_backend
+from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.render.gl import GLContext
 from agvsim.sensors.render.lighting import Illumination, lighting_level
 from agvsim.sensors.render.mount import CameraMount, CameraPose, check_pose
@@ -113,7 +113,7 @@ class CameraRenderer:
             integrates each pixel's area instead.
         context: pyrender only: a shared :class:`GLContext` (default: a new one, opened at
             the first frame).
-        backend: ``"raycast"`` or ``"pyrender"`` (:data:`~agvsim.sensors.render.backends.BACKENDS`).
+        backend: ``"raycast"`` or ``"pyrender"`` (:data:`~agvsim.sensors.backends.BACKENDS`).
     """
 
     def __init__(self, world_map, camera: Camera | None = None, mount: CameraMount | None = None,
@@ -220,7 +220,7 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        from agvsim.sensors.render import _sensor_kernels as sk
+        from agvsim.sensors.render._sensor_kernels import expose, motion_blur
         from agvsim.sensors.render.ray_records import SensorParams
 
         c = self.camera
@@ -233,7 +233,7 @@ class CameraRenderer:
                 if self._blur_prefix is None:
                     self._blur_prefix = (np.empty((c.height, c.width + 1)), np.empty((3, c.height, c.width), np.float32))
                 blurred = np.empty_like(radiance)
-                sk.motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_prefix)
+                motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_prefix)
                 radiance = blurred
         radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
@@ -241,7 +241,7 @@ class CameraRenderer:
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
                               float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)
-        sk.expose(radiance, params, image)
+        expose(radiance, params, image)
         return image, depth
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
