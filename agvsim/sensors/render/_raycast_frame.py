@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from agvsim.sensors.render._raycast_kernels import (MAX_HITS, MAX_SPANS, cast_ray, decal_cover, lamp_irradiance,
-                                                    mip_level, mip_sample, raster_lookup)
+from agvsim.sensors.render._raycast_kernels import (MAX_HITS, MAX_SPANS, bin_solids, cast_ray, decal_cover,
+                                                    lamp_irradiance, raster_lookup, same_spans)
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
@@ -320,84 +320,6 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
 
 
 @jit
-def _bin_solids(view, solids):
-    """CSR lists ``(start (W + 1,), items)`` of the solids whose outline may cross each column."""
-    w = view.width
-    n_solids = solids.height.shape[0]
-    lo = np.full(n_solids, -1, np.int64)
-    hi = np.full(n_solids, -2, np.int64)
-    counts = np.zeros(w + 1, np.int64)
-    for p in range(n_solids):
-        x_min = 1e300
-        x_max = -1e300
-        n_e = solids.start[p + 1] - solids.start[p]
-        n_front = 0
-        for a in range(n_e):
-            e = solids.start[p] + a
-            e2 = solids.start[p] + (a + 1) % n_e
-            # the edge's start vertex is where its line meets the previous edge's: store both
-            for q in (e, e2):
-                rx = solids.edge_x[q] - view.cam_x
-                ry = solids.edge_y[q] - view.cam_y
-                zq = rx * view.fwd_x + ry * view.fwd_y
-                if zq > view.near:
-                    n_front += 1
-            ax = solids.edge_x[e] - view.cam_x
-            ay = solids.edge_y[e] - view.cam_y
-            bx = solids.edge_x[e2] - view.cam_x
-            by = solids.edge_y[e2] - view.cam_y
-            za = ax * view.fwd_x + ay * view.fwd_y
-            zb = bx * view.fwd_x + by * view.fwd_y
-            xa = ax * view.right_x + ay * view.right_y
-            xb = bx * view.right_x + by * view.right_y
-            # clip the edge to the half-space in front of the near plane
-            if za <= view.near and zb <= view.near:
-                continue
-            if za < view.near:
-                t = (view.near - za) / (zb - za)
-                xa = xa + t * (xb - xa)
-                za = view.near
-            if zb < view.near:
-                t = (view.near - zb) / (za - zb)
-                xb = xb + t * (xa - xb)
-                zb = view.near
-            for xx, zz in ((xa, za), (xb, zb)):
-                ix = view.cx + view.fx * xx / zz
-                x_min = min(x_min, ix)
-                x_max = max(x_max, ix)
-        if n_front == 0 or x_max < x_min:
-            continue
-        j0 = int(math.ceil(x_min - 0.01 - 0.5))
-        j1 = int(math.floor(x_max + 0.01 + 0.5))
-        j0 = max(j0, 0)
-        j1 = min(j1, w - 1)
-        if j1 < j0:
-            continue
-        lo[p] = j0
-        hi[p] = j1
-        for j in range(j0, j1 + 1):
-            counts[j + 1] += 1
-    start = np.cumsum(counts)
-    items = np.empty(start[w], np.int64)
-    fill = start[:w].copy()
-    for p in range(n_solids):
-        for j in range(lo[p], hi[p] + 1):
-            items[fill[j]] = p
-            fill[j] += 1
-    return start, items
-
-
-@inline
-def _same_spans(n_a, kind_a, id_a, n_b, kind_b, id_b):
-    if n_a != n_b:
-        return False
-    for k in range(n_a):
-        if kind_a[k] != kind_b[k] or id_a[k] != id_b[k]:
-            return False
-    return True
-
-
-@jit
 def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t):
     """Draw one level frame.
 
@@ -408,7 +330,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     """
     w = view.width
     h = view.height
-    start, items = _bin_solids(view, solids)
+    start, items = bin_solids(view, solids)
     hit_in = np.empty(MAX_HITS)
     hit_out = np.empty(MAX_HITS)
     hit_solid = np.empty(MAX_HITS, np.int64)
@@ -439,7 +361,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
         n_b = cast_ray(view, solids, floor, j + 0.5, cand, n_cand, hit_in, hit_out, hit_solid, hit_edge,
                        by0, by1, bkind, bid, bval)
         acc[:] = 0.0
-        if _same_spans(n_a, akind, aid, n_b, bkind, bid):
+        if same_spans(n_a, akind, aid, n_b, bkind, bid):
             for k in range(n_b):
                 my0[k] = 0.5 * (ay0[k] + by0[k])
                 my1[k] = 0.5 * (ay1[k] + by1[k])

@@ -33,8 +33,8 @@ import numpy as np
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["MAX_HITS", "MAX_SPANS", "box_average", "cast_ray", "decal_cover", "face_albedo", "lamp_irradiance",
-           "mip_level", "mip_sample", "raster_lookup"]
+__all__ = ["MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "cast_ray", "decal_cover", "lamp_irradiance",
+           "raster_lookup", "same_spans"]
 
 MAX_SPANS = 96  # spans per ray (a column crossing every rack of a plant sees ~20)
 MAX_HITS = 96  # prisms crossed per ray
@@ -117,44 +117,6 @@ def box_average(tex, k, u0, u1, v0, v1):
 
 
 @inline
-def mip_level(tex, k, footprint):
-    """The mip level of texture ``k`` for a pixel footprint of ``footprint`` level-0 texels."""
-    if footprint <= 1.0:
-        return 0
-    lv = int(math.floor(math.log2(footprint)))
-    return min(lv, tex.mip_levels[k] - 1)
-
-
-@inline
-def mip_sample(tex, k, lv, u, v):
-    """Bilinear reflectance of level ``lv`` of texture ``k`` at ``(u, v)`` (texture units, v up);
-    tiled textures repeat, others are clamped at their edges."""
-    w = tex.mip_width[k, lv]
-    h = tex.mip_height[k, lv]
-    off = tex.mip_offset[k, lv]
-    x = u * w - 0.5
-    y = v * h - 0.5
-    j0 = int(math.floor(x))
-    i0 = int(math.floor(y))
-    fj = x - j0
-    fi = y - i0
-    if tex.tiled[k]:
-        j0 %= w
-        i0 %= h
-        j1 = j0 + 1 if j0 + 1 < w else 0
-        i1 = i0 + 1 if i0 + 1 < h else 0
-    else:
-        j1 = min(max(j0 + 1, 0), w - 1)
-        i1 = min(max(i0 + 1, 0), h - 1)
-        j0 = min(max(j0, 0), w - 1)
-        i0 = min(max(i0, 0), h - 1)
-    m = tex.mip
-    a = m[off + i0 * w + j0] * (1.0 - fj) + m[off + i0 * w + j1] * fj
-    b = m[off + i1 * w + j0] * (1.0 - fj) + m[off + i1 * w + j1] * fj
-    return a * (1.0 - fi) + b * fi
-
-
-@inline
 def decal_cover(faces, decals, tex, f, s0, s1, z0, z1, base):
     """Mean reflectance over ``s0..s1 x z0..z1`` of face ``f`` whose own surface there has
     reflectance ``base``: each decal replaces it over its rectangle with its printed face,
@@ -181,44 +143,6 @@ def decal_cover(faces, decals, tex, f, s0, s1, z0, z1, base):
         printed = box_average(tex, decals.texture[d], (a - decals.s0[d]) / dw, (b - decals.s0[d]) / dw,
                               (c - decals.z0[d]) / dh, (e - decals.z0[d]) / dh)
         total += (printed - base) * (b - a) * (e - c)
-    return total / area
-
-
-@jit
-def face_albedo(faces, decals, tex, f, s0, s1, z0, z1):
-    """Mean reflectance of face ``f`` over ``s0..s1`` (m along it) x ``z0..z1`` (m up),
-    decals included (each replaces the face's texture over its rectangle, exactly)."""
-    if s1 < s0:
-        s0, s1 = s1, s0
-    if s1 - s0 < 1e-9:
-        s1 = s0 + 1e-9
-    if z1 < z0:
-        z0, z1 = z1, z0
-    if z1 - z0 < 1e-9:
-        z1 = z0 + 1e-9
-    length = faces.length[f]
-    fh = faces.height[f]
-    du = (faces.u1[f] - faces.u0[f]) / length
-    dv = (faces.v1[f] - faces.v0[f]) / fh
-    k = faces.texture[f]
-    area = (s1 - s0) * (z1 - z0)
-    total = box_average(tex, k, faces.u0[f] + du * s0, faces.u0[f] + du * s1,
-                        faces.v0[f] + dv * z0, faces.v0[f] + dv * z1) * area
-    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
-        a = max(s0, decals.s0[d])
-        b = min(s1, decals.s1[d])
-        c = max(z0, decals.z0[d])
-        e = min(z1, decals.z1[d])
-        if b <= a or e <= c:
-            continue
-        part = (b - a) * (e - c)
-        base = box_average(tex, k, faces.u0[f] + du * a, faces.u0[f] + du * b,
-                           faces.v0[f] + dv * c, faces.v0[f] + dv * e)
-        dw = decals.s1[d] - decals.s0[d]
-        dh = decals.z1[d] - decals.z0[d]
-        printed = box_average(tex, decals.texture[d], (a - decals.s0[d]) / dw, (b - decals.s0[d]) / dw,
-                              (c - decals.z0[d]) / dh, (e - decals.z0[d]) / dh)
-        total += (printed - base) * part
     return total / area
 
 
@@ -405,3 +329,81 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
         sp_val[ns] = 0.0
         ns += 1
     return ns
+
+
+@jit
+def bin_solids(view, solids):
+    """CSR lists ``(start (W + 1,), items)`` of the solids whose outline may cross each column."""
+    w = view.width
+    n_solids = solids.height.shape[0]
+    lo = np.full(n_solids, -1, np.int64)
+    hi = np.full(n_solids, -2, np.int64)
+    counts = np.zeros(w + 1, np.int64)
+    for p in range(n_solids):
+        x_min = 1e300
+        x_max = -1e300
+        n_e = solids.start[p + 1] - solids.start[p]
+        n_front = 0
+        for a in range(n_e):
+            e = solids.start[p] + a
+            e2 = solids.start[p] + (a + 1) % n_e
+            # the edge's start vertex is where its line meets the previous edge's: store both
+            for q in (e, e2):
+                rx = solids.edge_x[q] - view.cam_x
+                ry = solids.edge_y[q] - view.cam_y
+                zq = rx * view.fwd_x + ry * view.fwd_y
+                if zq > view.near:
+                    n_front += 1
+            ax = solids.edge_x[e] - view.cam_x
+            ay = solids.edge_y[e] - view.cam_y
+            bx = solids.edge_x[e2] - view.cam_x
+            by = solids.edge_y[e2] - view.cam_y
+            za = ax * view.fwd_x + ay * view.fwd_y
+            zb = bx * view.fwd_x + by * view.fwd_y
+            xa = ax * view.right_x + ay * view.right_y
+            xb = bx * view.right_x + by * view.right_y
+            # clip the edge to the half-space in front of the near plane
+            if za <= view.near and zb <= view.near:
+                continue
+            if za < view.near:
+                t = (view.near - za) / (zb - za)
+                xa = xa + t * (xb - xa)
+                za = view.near
+            if zb < view.near:
+                t = (view.near - zb) / (za - zb)
+                xb = xb + t * (xa - xb)
+                zb = view.near
+            for xx, zz in ((xa, za), (xb, zb)):
+                ix = view.cx + view.fx * xx / zz
+                x_min = min(x_min, ix)
+                x_max = max(x_max, ix)
+        if n_front == 0 or x_max < x_min:
+            continue
+        j0 = int(math.ceil(x_min - 0.01 - 0.5))
+        j1 = int(math.floor(x_max + 0.01 + 0.5))
+        j0 = max(j0, 0)
+        j1 = min(j1, w - 1)
+        if j1 < j0:
+            continue
+        lo[p] = j0
+        hi[p] = j1
+        for j in range(j0, j1 + 1):
+            counts[j + 1] += 1
+    start = np.cumsum(counts)
+    items = np.empty(start[w], np.int64)
+    fill = start[:w].copy()
+    for p in range(n_solids):
+        for j in range(lo[p], hi[p] + 1):
+            items[fill[j]] = p
+            fill[j] += 1
+    return start, items
+
+
+@inline
+def same_spans(n_a, kind_a, id_a, n_b, kind_b, id_b):
+    if n_a != n_b:
+        return False
+    for k in range(n_a):
+        if kind_a[k] != kind_b[k] or id_a[k] != id_b[k]:
+            return False
+    return True
