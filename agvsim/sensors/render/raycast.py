@@ -59,7 +59,7 @@ class RaycastBackend:
         x0, y0, x1, y1 = scene.floor
         self.floor = Floor(float(x0), float(y0), float(x1), float(y1), keys[floor_key], float(tw), float(th),
                            float(scene.background))
-        self.textures = _summed_area_tables(scene, keys)
+        self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals})
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
 
@@ -202,22 +202,27 @@ def _flatten_geometry(scene: SceneDescription, keys: dict[str, int], mesh_geomet
     return solids, faces, decals
 
 
-def _summed_area_tables(scene: SceneDescription, keys: dict[str, int]) -> Textures:
-    """Summed-area tables (float64, rows from the bottom: ``v`` up) of the textures in ``keys``."""
+def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_keys: set[str]) -> Textures:
+    """The textures in ``keys``: summed-area tables (float64, rows from the bottom: ``v`` up) of
+    the decals' (they are integrated exactly), mip levels of the surfaces' (sampled as the
+    reference samples them); each texture gets only what the kernels read of it."""
     tiled = {p.texture: p.tiled for p in scene.parts}
     order = sorted(keys, key=keys.get)
-    sizes = [(scene.textures[k].shape[0] + 1) * (scene.textures[k].shape[1] + 1) for k in order]
+    sizes = [(scene.textures[k].shape[0] + 1) * (scene.textures[k].shape[1] + 1) if k in decal_keys else 0
+             for k in order]
     offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    sat = np.zeros(int(sum(sizes)), np.float64)
+    sat = np.zeros(max(int(sum(sizes)), 1), np.float64)
     width, height = [], []
     for k, off in zip(order, offset):
-        t = np.asarray(scene.textures[k], np.float64)[::-1]  # row 0 at v = 0
-        h, w = t.shape
-        table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
-        table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
+        h, w = scene.textures[k].shape
         width.append(w)
         height.append(h)
-    levels = [_mip_levels(np.asarray(scene.textures[k], np.float32)[::-1], tiled.get(k, True)) for k in order]
+        if k in decal_keys:
+            t = np.asarray(scene.textures[k], np.float64)[::-1]  # row 0 at v = 0
+            table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
+            table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
+    levels = [_mip_levels(np.asarray(scene.textures[k], np.float32)[::-1], tiled.get(k, True))
+              if k not in decal_keys else [np.zeros((1, 1), np.float32)] for k in order]
     n_lev = max(len(lv) for lv in levels)
     mip_offset = np.zeros((len(order), n_lev), np.int64)
     mip_w = np.ones((len(order), n_lev), np.int64)
