@@ -84,7 +84,7 @@ def _cumulative(sat, off, w, h, tiled, uu, vv):
     return _sat_at(sat, off, w, h, vv, uu)
 
 
-@inline
+@jit
 def box_average(tex, k, u0, u1, v0, v1):
     """Mean reflectance of texture ``k`` over the box ``u0..u1 x v0..v1`` (texture units,
     1 = the whole texture; ``v`` up); the texels are constant squares, so this is exact.
@@ -116,7 +116,7 @@ def box_average(tex, k, u0, u1, v0, v1):
     return total / ((b - a) * (d - c))
 
 
-@inline
+@jit
 def decal_cover(faces, decals, tex, f, s0, s1, z0, z1, base):
     """Mean reflectance over ``s0..s1 x z0..z1`` of face ``f`` whose own surface there has
     reflectance ``base``: each decal replaces it over its rectangle with its printed face,
