@@ -1,4 +1,5 @@
-"""The one set of numba compilation flags of the localizer's kernels.
+"""The numba compilation flags, in one place: the localizer's kernels (:data:`jit`, :data:`inline`)
+and the simulator's frame kernels (:data:`fast_jit`, :data:`fast_inline`, at the end).
 
 Every compiled kernel of :mod:`localizer` is decorated with :data:`jit`::
 

@@ -16,6 +16,7 @@ from localizer.lazy import lazy_exports
 from agvsim.sensors.registry import SOURCES, make_source, source_class
 
 _LAZY = {
+    "BACKENDS": "agvsim.sensors.backends",
     "ObservationSource": "agvsim.sensors.base",
     "SimObservation": "agvsim.sensors.base",
     "VisionConfig": "agvsim.sensors.vision",

@@ -11,7 +11,7 @@ opens its GL context when its first frame is rendered (:mod:`agvsim.sensors.rend
     ...                         np.random.default_rng(0))
     >>> truth.to_dict()["targets"][0]["distance"]
 
-Modules: ``renderer`` (``CameraRenderer``), ``backends`` (the list), ``raycast`` (+ its
+Modules: ``renderer`` (``CameraRenderer``; the backends' list is :mod:`agvsim.sensors.backends`), ``raycast`` (+ its
 kernels and ``ray_records``), ``pyrender_backend`` and ``gl`` (headless platform),
 ``scene``, ``textures``, ``lighting``, ``mount``, ``sensor``, ``truth``, ``strip`` (demo strip).
 """
@@ -21,8 +21,6 @@ from localizer.lazy import lazy_exports
 
 _LAZY = {
     "CameraRenderer": "agvsim.sensors.render.renderer",
-    "BACKENDS": "agvsim.sensors.backends",
-    "DEFAULT_BACKEND": "agvsim.sensors.backends",
     "RenderConditions": "agvsim.sensors.render.renderer",
     "CameraMount": "agvsim.sensors.render.mount",
     "CameraPose": "agvsim.sensors.render.mount",

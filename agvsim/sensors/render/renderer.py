@@ -134,7 +134,7 @@ class CameraRenderer:
         self.illumination = Illumination.from_map(world_map)
         self._truth_geometry = TruthGeometry.of(world_map)
         self._distortion_maps = None
-        self._blur_prefix = None
+        self._blur_scratch = None
         if self.backend == "pyrender":
             from agvsim.sensors.render.pyrender_backend import PyrenderBackend
 
@@ -230,10 +230,10 @@ class CameraRenderer:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time)
             if motion is not None:
-                if self._blur_prefix is None:
-                    self._blur_prefix = (np.empty((c.height, c.width + 1)), np.empty((3, c.height, c.width), np.float32))
+                if self._blur_scratch is None:
+                    self._blur_scratch = (np.empty((c.height, c.width + 1)), np.empty((3, c.height, c.width), np.float32))
                 blurred = np.empty_like(radiance)
-                motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_prefix)
+                motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_scratch)
                 radiance = blurred
         radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
