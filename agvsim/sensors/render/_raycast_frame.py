@@ -71,7 +71,7 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf
     """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = the mean of the bilinear
     samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated if
     tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach. Returns
-    ``(k_lo, a, b)``: texel row coordinate ``a + b y`` at image row ``y`` (centres at integers)."""
+    ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` in ``buf`` of image row ``y``."""
     mw = tex.mip_width[k, lv]
     mh = tex.mip_height[k, lv]
     off = tex.mip_offset[k, lv]
@@ -110,12 +110,12 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf
         row += 1
         if tiled and row == mh:
             row = 0
-    return float(k_lo), a - k_lo, b
+    return n, a - k_lo, b
 
 
 @inline
-def _column_at(buf, k_lo, t, n):
-    """Linear interpolation of ``buf`` at texel row coordinate ``t`` (already relative to ``k_lo``)."""
+def _column_at(buf, t, n):
+    """Linear interpolation of the first ``n`` entries of ``buf`` at coordinate ``t`` (clamped)."""
     if t < 0.0:
         t = 0.0
     if t > n - 1.000001:
@@ -166,10 +166,8 @@ def _shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc
     w1 = (lam - int(lam)) if lv1 > lv0 else 0.0
     t_lo = min(y0, y1) - 1.0
     t_hi = max(y0, y1) + 1.0
-    k0a, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf0)
-    k1a, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf1)
-    n0 = buf0.shape[0]
-    n1 = buf1.shape[0]
+    n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf0)
+    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf1)
     d_lo = 1e300
     d_hi = -1e300
     s_lo = min(s_a, s_b)
@@ -194,10 +192,9 @@ def _shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc
         # two subsample rows, trilinear between the span's two levels
         ta = ym - 0.25
         tb = ym + 0.25
-        alb = (1.0 - w1) * 0.5 * (_column_at(buf0, k0a - 0.0, t0a + t0b * ta, n0)
-                                  + _column_at(buf0, k0a - 0.0, t0a + t0b * tb, n0))
+        alb = (1.0 - w1) * 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0))
         if w1 > 0.0:
-            alb += w1 * 0.5 * (_column_at(buf1, k1a, t1a + t1b * ta, n1) + _column_at(buf1, k1a, t1a + t1b * tb, n1))
+            alb += w1 * 0.5 * (_column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
         z_top = hc - (ya - cy) * zpy
         z_bot = hc - (yb - cy) * zpy
         if z_top > d_lo and z_bot < d_hi:

@@ -68,42 +68,25 @@ def _sat_at(sat, off, w, h, rows, cols):
     return (s00 * (1.0 - fi) * (1.0 - fj) + s01 * (1.0 - fi) * fj + s10 * fi * (1.0 - fj) + s11 * fi * fj)
 
 
-@inline
-def _cumulative(sat, off, w, h, tiled, uu, vv):
-    """Integral of texture texels over ``[0, uu] x [0, vv]`` (texel units), repeated if tiled."""
-    if tiled:
-        qu = math.floor(uu / w)
-        qv = math.floor(vv / h)
-        ru = uu - qu * w
-        rv = vv - qv * h
-        full = sat[off + h * (w + 1) + w]
-        return (qu * qv * full + qu * _sat_at(sat, off, w, h, rv, w) + qv * _sat_at(sat, off, w, h, h, ru)
-                + _sat_at(sat, off, w, h, rv, ru))
-    uu = min(max(uu, 0.0), float(w))
-    vv = min(max(vv, 0.0), float(h))
-    return _sat_at(sat, off, w, h, vv, uu)
-
-
 @jit
 def box_average(tex, k, u0, u1, v0, v1):
-    """Mean reflectance of texture ``k`` over the box ``u0..u1 x v0..v1`` (texture units,
-    1 = the whole texture; ``v`` up); the texels are constant squares, so this is exact.
-    Boxes thinner than 1e-6 of a texel are widened to that (a point sample)."""
+    """Mean reflectance of texture ``k`` (a decal's: clamped at its edges) over the box
+    ``u0..u1 x v0..v1`` (texture units, 1 = the whole texture; ``v`` up); the texels are
+    constant squares, so this is exact. Boxes thinner than 1e-6 of a texel are widened to
+    that (a point sample)."""
     w = tex.width[k]
     h = tex.height[k]
     off = tex.offset[k]
-    tiled = tex.tiled[k]
     a, b = (u0, u1) if u0 <= u1 else (u1, u0)
     c, d = (v0, v1) if v0 <= v1 else (v1, v0)
     a *= w
     b *= w
     c *= h
     d *= h
-    if not tiled:
-        a = min(max(a, 0.0), w - 1e-6)
-        b = min(max(b, 1e-6), float(w))
-        c = min(max(c, 0.0), h - 1e-6)
-        d = min(max(d, 1e-6), float(h))
+    a = min(max(a, 0.0), w - 1e-6)
+    b = min(max(b, 1e-6), float(w))
+    c = min(max(c, 0.0), h - 1e-6)
+    d = min(max(d, 1e-6), float(h))
     if b - a < 1e-6:
         m = 0.5 * (a + b)
         a, b = m - 5e-7, m + 5e-7
@@ -111,8 +94,8 @@ def box_average(tex, k, u0, u1, v0, v1):
         m = 0.5 * (c + d)
         c, d = m - 5e-7, m + 5e-7
     sat = tex.sat
-    total = (_cumulative(sat, off, w, h, tiled, b, d) - _cumulative(sat, off, w, h, tiled, a, d)
-             - _cumulative(sat, off, w, h, tiled, b, c) + _cumulative(sat, off, w, h, tiled, a, c))
+    total = (_sat_at(sat, off, w, h, d, b) - _sat_at(sat, off, w, h, d, a)
+             - _sat_at(sat, off, w, h, c, b) + _sat_at(sat, off, w, h, c, a))
     return total / ((b - a) * (d - c))
 
 
@@ -267,7 +250,6 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
     ns = 0
     z_a = near
     h_prev = 0.0 if f_in <= near < f_out else -1.0
-    # active solids at the start (the lens inside a prism's outline: draw from the near plane)
     cursor = 0
     while top > -0.5 and ns < MAX_SPANS - 2:
         # the next event after z_a: an entry, an exit or a floor edge

@@ -43,8 +43,6 @@ class RaycastBackend:
             surface; only for comparisons with the pyrender reference.
     """
 
-    supersample = 1  # depth buffers are at the camera's resolution
-
     def __init__(self, scene: SceneDescription, illumination: Illumination, lighting_default: float,
                  subcolumns: int = SUBCOLUMNS, mesh_geometry: bool = False) -> None:
         if isinstance(subcolumns, bool) or not isinstance(subcolumns, (int, np.integer)) or not 1 <= subcolumns <= 16:
