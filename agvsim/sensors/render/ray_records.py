@@ -103,11 +103,12 @@ class Textures(NamedTuple):
     width: np.ndarray  # (T,) int64, texels
     height: np.ndarray  # (T,) int64, texels
     tiled: np.ndarray  # (T,) bool
-    mip: np.ndarray  # (M,) float32, box-filtered mip levels, rows from the bottom (v up)
+    mip: np.ndarray  # (M,) float32, box-filtered mip levels, rows from the bottom (v up); row-major or column-major (below)
     mip_offset: np.ndarray  # (T, L) int64, level l of texture k at mip[mip_offset[k, l]:]
     mip_width: np.ndarray  # (T, L) int64, texels of level l
     mip_height: np.ndarray  # (T, L) int64
     mip_levels: np.ndarray  # (T,) int64, number of levels
+    column_major: np.ndarray  # (T,) bool: texel (r, c) of a level at mip_offset + c * height + r (faces'), else r * width + c (the floor's)
 
 
 class Floor(NamedTuple):

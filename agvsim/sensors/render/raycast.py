@@ -28,6 +28,7 @@ __all__ = ["NEAR", "SUBCOLUMNS", "RaycastBackend"]
 NEAR = 0.05  # m, as the pyrender backend's near plane
 SUBCOLUMNS = 4  # sub-column rays of a column that a silhouette crosses
 DECAL_TOLERANCE = 0.005  # m, how far a decal may lie off its wall face
+FLOOR_KEY = "floor-plane:surface:floor"  # the floor's texture entry: scene texture "surface:floor"
 
 
 class RaycastBackend:
@@ -51,13 +52,13 @@ class RaycastBackend:
         self.lighting_default = float(lighting_default)
         keys: dict[str, int] = {}
         self.solids, self.faces, self.decals = _flatten_geometry(scene, keys, bool(mesh_geometry))
-        floor_key = "surface:floor"
+        floor_key = FLOOR_KEY  # its own entry (stored row-major), even if a face uses the same look
         keys.setdefault(floor_key, len(keys))
         tw, th = SURFACE_TILE["floor"]
         x0, y0, x1, y1 = scene.floor
         self.floor = Floor(float(x0), float(y0), float(x1), float(y1), keys[floor_key], float(tw), float(th),
                            float(scene.background))
-        self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals})
+        self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals}, floor_key)
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
 
@@ -200,27 +201,30 @@ def _flatten_geometry(scene: SceneDescription, keys: dict[str, int], mesh_geomet
     return solids, faces, decals
 
 
-def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_keys: set[str]) -> Textures:
+def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_keys: set[str],
+                        floor_key: str) -> Textures:
     """The textures in ``keys``: summed-area tables (float64, rows from the bottom: ``v`` up) of
     the decals' (they are integrated exactly), mip levels of the surfaces' (sampled as the
-    reference samples them); each texture gets only what the kernels read of it."""
+    reference samples them: the floor's stored row by row, the faces' column by column); each
+    texture gets only what the kernels read of it."""
     tiled = {p.texture: p.tiled for p in scene.parts}
     order = sorted(keys, key=keys.get)
-    sizes = [(scene.textures[k].shape[0] + 1) * (scene.textures[k].shape[1] + 1) if k in decal_keys else 0
-             for k in order]
+    images = {k: scene.textures[k.split(":", 1)[1] if k == floor_key else k] for k in order}
+    sizes = [(images[k].shape[0] + 1) * (images[k].shape[1] + 1) if k in decal_keys else 0 for k in order]
     offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     sat = np.zeros(max(int(sum(sizes)), 1), np.float64)
     width, height = [], []
     for k, off in zip(order, offset):
-        h, w = scene.textures[k].shape
+        h, w = images[k].shape
         width.append(w)
         height.append(h)
         if k in decal_keys:
-            t = np.asarray(scene.textures[k], np.float64)[::-1]  # row 0 at v = 0
+            t = np.asarray(images[k], np.float64)[::-1]  # row 0 at v = 0
             table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
             table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
-    levels = [_mip_levels(np.asarray(scene.textures[k], np.float32)[::-1], tiled.get(k, True))
+    levels = [_mip_levels(np.asarray(images[k], np.float32)[::-1], tiled.get(k, True))
               if k not in decal_keys else [np.zeros((1, 1), np.float32)] for k in order]
+    column_major = [k != floor_key for k in order]  # the faces' are read a texel column at a time
     n_lev = max(len(lv) for lv in levels)
     mip_offset = np.zeros((len(order), n_lev), np.int64)
     mip_w = np.ones((len(order), n_lev), np.int64)
@@ -230,11 +234,12 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
         for lvl, img in enumerate(lv):
             mip_offset[k, lvl] = pos
             mip_h[k, lvl], mip_w[k, lvl] = img.shape
-            chunks.append(img.ravel())
+            chunks.append(img.T.ravel() if column_major[k] else img.ravel())
             pos += img.size
     return Textures(sat, offset, np.asarray(width, np.int64), np.asarray(height, np.int64),
                     np.asarray([tiled.get(k, True) for k in order], np.bool_), np.concatenate(chunks).astype(np.float32),
-                    mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64))
+                    mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64),
+                    np.asarray(column_major, np.bool_))
 
 
 def _mip_levels(img: np.ndarray, tiled: bool) -> list[np.ndarray]:
@@ -296,6 +301,10 @@ def _light(ill: Illumination, faces: Faces) -> Light:
         rows.append(nr)
         pos += nc * nr
     face_irr = np.concatenate(tables) if tables else np.zeros(1, np.float32)
+    # the floor pass reads 2 x 2 cells: a raster one cell wide or high gets its edge repeated
+    # (bilinear values unchanged: beyond the last cell the kernels repeat it anyway)
+    grow = ((0, max(0, 2 - zone.shape[0])), (0, max(0, 2 - zone.shape[1])))
+    zone, floor_irr = np.pad(zone, grow, mode="edge"), np.pad(floor_irr, grow, mode="edge")
     return Light(float(ill.ambient), float(ill.lamp_origin[0]), float(ill.lamp_origin[1]), float(ill.lamp_spacing),
                  float(ill.lamp_height), float(ill.lamp_gain), zone, np.ascontiguousarray(floor_irr),
                  np.ascontiguousarray(floor_irr * zone), float(ill.raster_origin[0]), float(ill.raster_origin[1]),

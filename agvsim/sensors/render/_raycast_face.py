@@ -1,0 +1,305 @@
+"""The raycaster's face kernels: a vertical face's span of one image column to radiance.
+
+The texture is filtered as the pyrender reference samples it (2 x 2 supersampling, each
+sample trilinear at the supersampled footprint): with a level camera, ``u`` is fixed across
+a column's span and ``v`` linear in the row, so each mip level is one column of texels
+along the span, built once per span from the level's column-major storage
+(:func:`_texel_column`, contiguous runs) and sampled per row; decals are integrated exactly
+(:func:`agvsim.sensors.render._raycast_kernels.decal_cover`). Irradiance (ambient + lamps)
+is the face's table, evaluated every :data:`LIGHT_ROWS` rows, linear between.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agvsim.sensors.render._raycast_kernels import decal_cover, raster_lookup
+from localizer._jit import fast_inline as inline
+
+__all__ = ["LIGHT_ROWS", "shade_face"]
+
+LIGHT_ROWS = 32.0  # px between the rows where a face's irradiance is evaluated (linear between)
+
+
+@inline
+def _face_s(view, faces, f, x):
+    """Position along face ``f`` (m from its left end) where the ray of image column ``x``
+    meets the face's line, clamped to the face."""
+    xn = (x - view.cx) / view.fx
+    dx = view.fwd_x + xn * view.right_x
+    dy = view.fwd_y + xn * view.right_y
+    qx = faces.x[f] - view.cam_x
+    qy = faces.y[f] - view.cam_y
+    den = dx * faces.ey[f] - dy * faces.ex[f]
+    if abs(den) < 1e-12:
+        return 0.0 if (qx * dx + qy * dy) > 0 else faces.length[f]
+    s = -(dx * qy - dy * qx) / den
+    return min(max(s, 0.0), faces.length[f])
+
+
+@inline
+def _face_irradiance(light, f, s, z):
+    """Ambient + lamps on face ``f`` at ``s`` (m along it), ``z`` (m up): bilinear in the
+    face's table (cells of ``light.face_res``, built once per map)."""
+    res = light.face_res
+    nc = light.face_cols[f]
+    nr = light.face_rows[f]
+    fs = min(max(s / res, 0.0), nc - 1.0)
+    fz = min(max(z / res, 0.0), nr - 1.0)
+    j = min(int(fs), nc - 2) if nc > 1 else 0
+    i = min(int(fz), nr - 2) if nr > 1 else 0
+    ts = fs - j
+    tz = fz - i
+    base = light.face_offset[f] + i * nc + j
+    t = light.face_irr
+    j1 = 1 if nc > 1 else 0
+    i1 = nc if nr > 1 else 0
+    return ((t[base] * (1.0 - ts) + t[base + j1] * ts) * (1.0 - tz)
+            + (t[base + i1] * (1.0 - ts) + t[base + i1 + j1] * ts) * tz)
+
+
+@inline
+def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf):
+    """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = the mean of the bilinear
+    samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated if
+    tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach. Returns
+    ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` in ``buf`` of image row ``y``.
+
+    The level is stored column by column (``tex.column_major[k]``), so this reads four
+    contiguous runs of texels (the two texel columns either side of each sample)."""
+    mw = tex.mip_width[k, lv]
+    mh = tex.mip_height[k, lv]
+    off = tex.mip_offset[k, lv]
+    tiled = tex.tiled[k]
+    # texel row coordinate (centre of row r at r) of image row y: v(y) * mh - 0.5
+    b = -dvz * zpy * mh
+    a = (v0 + dvz * (hc + cy * zpy)) * mh - 0.5
+    ra = a + b * y_lo
+    rb = a + b * y_hi
+    k_lo = int(math.floor(min(ra, rb))) - 1
+    n = min(int(math.floor(max(ra, rb))) + 2 - k_lo + 1, buf.shape[0])
+    # the two subsample columns: texel column coordinates and weights
+    xa = (u_c - u_half) * mw - 0.5
+    xb = (u_c + u_half) * mw - 0.5
+    ja = int(math.floor(xa))
+    jb = int(math.floor(xb))
+    fa = xa - ja
+    fb = xb - jb
+    if tiled:
+        ja0 = ja % mw
+        ja1 = (ja + 1) % mw
+        jb0 = jb % mw
+        jb1 = (jb + 1) % mw
+    else:
+        ja0 = min(max(ja, 0), mw - 1)
+        ja1 = min(max(ja + 1, 0), mw - 1)
+        jb0 = min(max(jb, 0), mw - 1)
+        jb1 = min(max(jb + 1, 0), mw - 1)
+    m = tex.mip
+    ca0 = off + ja0 * mh
+    ca1 = off + ja1 * mh
+    cb0 = off + jb0 * mh
+    cb1 = off + jb1 * mh
+    wa0 = 0.5 * (1.0 - fa)
+    wa1 = 0.5 * fa
+    wb0 = 0.5 * (1.0 - fb)
+    wb1 = 0.5 * fb
+    q = 0
+    while q < n:
+        r = k_lo + q
+        if tiled:
+            rr = r % mh
+            run = min(n - q, mh - rr)
+        elif r < 0 or r >= mh:  # rows beyond the edge repeat the edge row
+            rr = 0 if r < 0 else mh - 1
+            run = min(n - q, -r) if r < 0 else n - q
+            edge = wa0 * m[ca0 + rr] + wa1 * m[ca1 + rr] + wb0 * m[cb0 + rr] + wb1 * m[cb1 + rr]
+            buf[q:q + run] = edge
+            q += run
+            continue
+        else:
+            rr = r
+            run = min(n - q, mh - rr)
+        # four contiguous runs (slices: the loop is vectorised)
+        a0 = m[ca0 + rr:ca0 + rr + run]
+        a1 = m[ca1 + rr:ca1 + rr + run]
+        b0 = m[cb0 + rr:cb0 + rr + run]
+        b1 = m[cb1 + rr:cb1 + rr + run]
+        out = buf[q:q + run]
+        for t in range(run):
+            out[t] = wa0 * a0[t] + wa1 * a1[t] + wb0 * b0[t] + wb1 * b1[t]
+        q += run
+    return n, a - k_lo, b
+
+
+@inline
+def _column_at(buf, t, n):
+    """Linear interpolation of the first ``n`` entries of ``buf`` at coordinate ``t`` (clamped)."""
+    if t < 0.0:
+        t = 0.0
+    if t > n - 1.000001:
+        t = n - 1.000001
+    q = int(t)
+    return buf[q] + (buf[q + 1] - buf[q]) * (t - q)
+
+
+@inline
+def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, w1, buf0, n0, t0a, t0b,
+                buf1, n1, t1a, t1b, d_lo, d_hi):
+    """``(cov, reflectance, ym)`` of face ``f`` in pixel row ``i`` (the part ``y0 .. y1`` covers)."""
+    ya = max(i - 0.5, y0)
+    yb = min(i + 0.5, y1)
+    cov = yb - ya
+    if cov <= 0.0:
+        return 0.0, 0.0, 0.0
+    ym = 0.5 * (ya + yb)
+    # two subsample rows, trilinear between the span's two levels
+    ta = ym - 0.25
+    tb = ym + 0.25
+    alb = ((1.0 - w1) * 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0))
+           + w1 * 0.5 * (_column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1)))
+    z_top = hc - (ya - cy) * zpy
+    z_bot = hc - (yb - cy) * zpy
+    if z_top > d_lo and z_bot < d_hi:
+        alb = decal_cover(faces, decals, tex, f, s_a, s_b, z_bot, z_top, alb)
+    return cov, alb, ym
+
+
+@inline
+def _irr_at(irr, ym, y0, inv_step, n_l):
+    """The span's irradiance at row coordinate ``ym`` (linear between its samples)."""
+    qq = (ym - y0) * inv_step
+    mm = min(int(qq), n_l - 2)
+    return irr[mm] + (irr[mm + 1] - irr[mm]) * (qq - mm)
+
+
+@inline
+def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc, depth, write_depth,
+               irr_scratch):
+    """Add ``gain`` x the radiance of face ``f`` (depth ``z`` m along the axis) over rows
+    ``y0 .. y1`` of the (sub-)column ``x0 .. x1`` to ``acc`` ``(H,)``; ``depth`` ``(H,)`` gets
+    ``z`` at the pixel centres it covers when ``write_depth``. ``irr_scratch``: ``(H + 2 + 2 (4 H + 8),)``
+    float64 (irradiance samples, two texel columns)."""
+    h_img = view.height
+    buf0 = irr_scratch[h_img + 2:h_img + 2 + 4 * h_img + 8]
+    buf1 = irr_scratch[h_img + 2 + 4 * h_img + 8:]
+    fy = view.fy
+    cy = view.cy
+    hc = view.cam_z
+    s_a = _face_s(view, faces, f, x0)
+    s_b = _face_s(view, faces, f, x1)
+    s_c = 0.5 * (s_a + s_b)
+    xn = (0.5 * (x0 + x1) - view.cx) / view.fx
+    px = view.cam_x + z * (view.fwd_x + xn * view.right_x)
+    py = view.cam_y + z * (view.fwd_y + xn * view.right_y)
+    if view.level >= 0.0:
+        gain *= view.level
+    else:
+        gain *= raster_lookup(light, light.zone, px, py)
+    zpy = z / fy  # m of height per row
+    # irradiance at rows y0 + m * step, linear between
+    n_l = int(math.ceil((y1 - y0) / LIGHT_ROWS)) + 1
+    step = (y1 - y0) / (n_l - 1)
+    inv_step = 1.0 / step
+    for m in range(n_l):
+        irr_scratch[m] = _face_irradiance(light, f, s_c, hc - (y0 + m * step - cy) * zpy)
+    # the texture, filtered as the pyrender reference samples it (2 x 2 supersampling, each
+    # sample trilinear at the supersampled footprint): u is fixed across the span and v
+    # linear in the row, so each mip level is a column of texels along the span (buf0, buf1)
+    tk = faces.texture[f]
+    du = (faces.u1[f] - faces.u0[f]) / faces.length[f]
+    dvz = (faces.v1[f] - faces.v0[f]) / faces.height[f]
+    u_c = faces.u0[f] + du * s_c
+    u_half = 0.25 * du * (s_b - s_a)  # texture units from the pixel centre to a subsample
+    rho = 0.5 * max(abs(du * (s_b - s_a)) * tex.width[tk], abs(dvz * zpy) * tex.height[tk])
+    lam = math.log2(rho) if rho > 1.0 else 0.0
+    n_lev = tex.mip_levels[tk]
+    lv0 = min(int(lam), n_lev - 1)
+    lv1 = min(lv0 + 1, n_lev - 1)
+    w1 = (lam - int(lam)) if lv1 > lv0 else 0.0
+    t_lo = min(y0, y1) - 1.0
+    t_hi = max(y0, y1) + 1.0
+    n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf0)
+    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf1)
+    # the rows of decals that this column's footprint on the face crosses
+    d_lo = 1e300
+    d_hi = -1e300
+    s_lo = min(s_a, s_b)
+    s_hi = max(s_a, s_b)
+    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
+        if decals.s0[d] < s_hi and decals.s1[d] > s_lo:
+            d_lo = min(d_lo, decals.z0[d])
+            d_hi = max(d_hi, decals.z1[d])
+    i_lo = max(int(math.floor(y0 + 0.5)), 0)
+    i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
+    # rows the span covers whole and no decal reaches: the plain loop; the rest pixel by pixel
+    f_lo = max(int(math.ceil(y0 + 0.5)), i_lo)
+    f_hi = min(int(math.floor(y1 - 0.5)), i_hi)
+    b_lo = f_hi + 1
+    b_hi = f_hi
+    if d_hi > d_lo:  # decal rows: z_top > d_lo and z_bot < d_hi
+        b_lo = max(int(math.floor((hc - d_hi) / zpy + cy - 0.5)), f_lo)
+        b_hi = min(int(math.ceil((hc - d_lo) / zpy + cy + 0.5)), f_hi)
+        if b_hi < b_lo:
+            b_lo = f_hi + 1
+            b_hi = f_hi
+    # the rows above and below the whole ones (one at most each), then the decal band
+    n_top = max(min(f_lo, i_hi + 1) - i_lo, 0)
+    bot = max(f_hi + 1, f_lo, i_lo)
+    n_bot = max(i_hi + 1 - bot, 0)
+    n_band = max(b_hi + 1 - b_lo, 0)
+    for q in range(n_top + n_bot + n_band):
+        i = i_lo + q if q < n_top else (bot + q - n_top if q < n_top + n_bot else b_lo + q - n_top - n_bot)
+        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, w1, buf0, n0,
+                                   t0a, t0b, buf1, n1, t1a, t1b, d_lo, d_hi)
+        if cov > 0.0:
+            acc[i] += gain * cov * alb * _irr_at(irr_scratch, ym, y0, inv_step, n_l)
+    w0 = (1.0 - w1) * 0.5 * gain
+    w1 = w1 * 0.5 * gain
+    _plain_rows(f_lo, min(b_lo - 1, f_hi), w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
+    _plain_rows(max(b_hi + 1, f_lo), f_hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
+    if write_depth:
+        for i in range(i_lo, i_hi + 1):
+            if y0 <= i < y1:
+                depth[i] = z
+
+
+@inline
+def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n_l, acc):
+    """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: the two
+    subsamples of each level (weights ``w0``, ``w1``, gain included) times the irradiance.
+
+    The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
+    subsamples need no clamping; the irradiance is stepped linearly within each of its
+    segments (``step`` rows from ``y0``)."""
+    if hi < lo:
+        return
+    d0 = 0.25 * t0b
+    d1 = 0.25 * t1b
+    one = np.uint64(1)
+    m0 = min(max(int((lo - y0) / step), 0), n_l - 2)
+    m1 = min(max(int((hi - y0) / step), 0), n_l - 2)
+    for m in range(m0, m1 + 1):
+        a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
+        b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
+        slope = (irr[m + 1] - irr[m]) / step
+        base = irr[m] + (a - (y0 + m * step)) * slope
+        for i in range(a, b + 1):
+            e = base + (i - a) * slope
+            c0 = t0a + t0b * i
+            c1 = t1a + t1b * i
+            # p >= 0: unsigned indices (no wrap-around test per load)
+            p = c0 - d0
+            q = np.uint64(p)
+            s0 = buf0[q] + (buf0[q + one] - buf0[q]) * (p - math.floor(p))
+            p = c0 + d0
+            q = np.uint64(p)
+            s0 += buf0[q] + (buf0[q + one] - buf0[q]) * (p - math.floor(p))
+            p = c1 - d1
+            q = np.uint64(p)
+            s1 = buf1[q] + (buf1[q + one] - buf1[q]) * (p - math.floor(p))
+            p = c1 + d1
+            q = np.uint64(p)
+            s1 += buf1[q] + (buf1[q + one] - buf1[q]) * (p - math.floor(p))
+            acc[i] += (w0 * s0 + w1 * s1) * e
