@@ -1,11 +1,16 @@
-"""The raycast backend's compiled sensor noise against its model (no rendering).
+"""The raycast backend's compiled sensor stages against their models (no rendering).
 
 * the noise generator: its draws are standard normal (Kolmogorov-Smirnov distance to the
   normal CDF on 4M draws, tail frequencies beyond 3 and 4 sigma, kurtosis), the two normals of a pair are
   independent, and every draw is within 1e-6 sigma of the exact Box-Muller transform of
   the same bits (a float64 NumPy reimplementation);
 * ``expose`` adds exactly those normals at the model's sigma; same seed same frame, other
-  seed other frame; no noise gives the rounded exposure.
+  seed other frame; no noise gives the rounded exposure;
+* ``motion_blur`` equals a float64 NumPy evaluation of its model (path ends by projection,
+  exact horizontal integral, rows blended at the path's midpoint) on textured scenes with
+  yaw, sideways and forward motion, far pixels, paths clipped at the image sides, paths
+  within one pixel, and vertical smears longer than the ring of prefix rows;
+* ``nearest_depth`` is the smallest positive depth.
 """
 from __future__ import annotations
 
@@ -15,8 +20,19 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from agvsim.sensors.render._sensor_kernels import expose, standard_normals
-from agvsim.sensors.render.ray_records import SensorParams
+from agvsim.sensors.render import sensor as sn
+from agvsim.sensors.render._sensor_kernels import (
+    expose,
+    motion_blur,
+    nearest_depth,
+    standard_normals,
+)
+from agvsim.sensors.render.ray_records import (
+    BlurScratch,
+    MotionBlurParams,
+    SensorParams,
+)
+from localizer import Camera
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -133,3 +149,93 @@ def test_expose_without_noise_rounds_and_saturates():
     out = np.empty(radiance.shape, np.uint8)
     expose(radiance, SensorParams(235.0, 5.0, 20000.0 / 255.0, 0.8, 0.0, 1), out)
     assert out.tolist() == [[5, 123, 240, 255, 0, 11, 10]]  # 10.546 and 10.452 grey levels
+
+
+def test_nearest_depth():
+    assert nearest_depth(np.array([[0.0, 3.5], [-1.0, 2.25]], np.float32)) == 2.25
+    assert nearest_depth(np.zeros((3, 4), np.float32)) == 1e3
+
+
+# ------------------------------------------------------------------ motion blur
+def blur_model(radiance: np.ndarray, depth: np.ndarray, p: MotionBlurParams) -> np.ndarray:
+    """The model of ``motion_blur`` in float64 NumPy."""
+    h, w = radiance.shape
+    jj, ii = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    z = np.where(depth > 0, depth, 1e3).astype(float)
+    point = np.stack([(jj - p.cx) / p.fx * z, (ii - p.cy) / p.fy * z, z])
+    ends = []
+    for rot, tr in ((p.rot_a, p.tr_a), (p.rot_b, p.tr_b)):
+        q = np.tensordot(rot, point, 1) + np.asarray(tr, float)[:, None, None]
+        qz = np.maximum(q[2], 1e-3)
+        ends.append((p.cx + p.fx * q[0] / qz + 0.5, p.cy + p.fy * q[1] / qz))
+    (ax, ay), (bx, by) = ends
+    k0 = np.clip(np.minimum(ax, bx), 0.0, w - 1e-3)
+    k1 = np.minimum(np.maximum(np.maximum(ax, bx), k0 + 1e-3), w)
+    ym = np.clip(0.5 * (ay + by), 0.0, h - 1.0)
+    r0 = np.minimum(ym.astype(int), h - 2)
+    x = radiance.astype(float)
+    prefix = np.concatenate([np.zeros((h, 1)), np.cumsum(x, axis=1)], axis=1)
+
+    def integral(r, k):  # sum of row r over [0, k), pixels piecewise constant
+        a = np.minimum(k.astype(int), w - 1)
+        return prefix[r, a] + (k - a) * x[r, a]
+
+    s0 = integral(r0, k1) - integral(r0, k0)
+    s1 = integral(r0 + 1, k1) - integral(r0 + 1, k0)
+    return (s0 + (s1 - s0) * (ym - r0)) / (k1 - k0)
+
+
+def _scene(h: int, w: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Blocky texture with fine noise; depth 1.5 .. 12 m in patches, some far (0)."""
+    rng = np.random.default_rng(seed)
+    radiance = (np.kron(rng.random((h // 6 + 1, w // 6 + 1)), np.ones((6, 6)))[:h, :w]
+                + 0.1 * rng.random((h, w))).astype(np.float32)
+    depth = np.kron(rng.uniform(1.5, 12.0, (h // 15 + 1, w // 15 + 1)), np.ones((15, 15)))[:h, :w]
+    depth[rng.random((h, w)) < 0.03] = 0.0
+    return radiance, depth.astype(np.float32)
+
+
+def _params(camera: Camera, radiance, depth, v, omega, t) -> MotionBlurParams:
+    motion = sn.exposure_motion(camera, radiance, depth, (np.asarray(v, float), np.asarray(omega, float)), t)
+    assert motion is not None
+    return MotionBlurParams(camera.fx, camera.fy, camera.cx, camera.cy, *motion[:4])
+
+
+#: (camera v m/s, camera omega rad/s, exposure s): yaw; yaw and sideways; forward (vertical smear);
+#: a small twist (paths within one pixel for the far points); a fast roll (rows tilt across the ring)
+MOTIONS = [
+    ((0.0, 0.0, 0.0), (0.0, -0.8, 0.0), 0.02),
+    ((0.6, 0.0, 0.3), (0.0, 0.5, 0.0), 0.02),
+    ((0.0, 0.0, 2.5), (0.0, 0.1, 0.0), 0.03),
+    ((0.0, 0.0, 0.0), (0.0, 0.02, 0.0), 0.01),
+    ((0.1, 0.0, 0.0), (0.0, 0.0, 3.0), 0.05),
+]
+
+
+@pytest.mark.parametrize("v,omega,t", MOTIONS)
+def test_motion_blur_equals_its_model(v, omega, t):
+    camera = Camera(300.0, 310.0, 80.3, 59.6, 161, 121)
+    radiance, depth = _scene(121, 161, 11)
+    params = _params(camera, radiance, depth, v, omega, t)
+    expected = blur_model(radiance, depth, params)
+    for scratch in (BlurScratch.of(121, 161), BlurScratch.of(121, 161, ring_rows=4)):  # 4: the ring overflows
+        out = np.empty_like(radiance)
+        motion_blur(radiance, depth, params, out, scratch)
+        assert np.max(np.abs(out - expected)) < 2e-5 * radiance.max()
+
+
+def test_motion_blur_keeps_a_uniform_scene_uniform():
+    camera = Camera(300.0, 300.0, 80.0, 60.0, 160, 120)
+    _, depth = _scene(120, 160, 3)
+    radiance = np.full((120, 160), 0.7, np.float32)
+    out = np.empty_like(radiance)
+    motion_blur(radiance, depth, _params(camera, radiance, depth, (0.3, 0.0, 1.0), (0.0, 0.6, 0.1), 0.02),
+                out, BlurScratch.of(120, 160))
+    assert np.max(np.abs(out - 0.7)) < 1e-5 * 0.7  # float32 prefix sums of the rows
+
+
+def test_blur_scratch_checks_its_sizes():
+    with pytest.raises(ValueError, match="power-of-2"):
+        BlurScratch.of(10, 10, ring_rows=12)
+    with pytest.raises(ValueError, match="height >= 2"):
+        BlurScratch.of(1, 10)

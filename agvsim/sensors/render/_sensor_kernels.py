@@ -1,7 +1,7 @@
 """Compiled sensor stages of the raycast backend: sensor noise and exposure, motion blur.
 
 The same models as :mod:`agvsim.sensors.render.sensor` (which the pyrender backend runs
-in NumPy and OpenCV), written per pixel so that a frame costs a fraction of a millisecond:
+in NumPy and OpenCV), written so that LLVM vectorises the per-pixel loops (8 lanes):
 
 * :func:`expose`: gain, flare, shot + read noise, saturation, 8 bits. The noise is
   Gaussian by the Box-Muller transform of a counter-based generator: SplitMix64 of the
@@ -30,12 +30,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba.cpython.unsafe.numbers import leading_zeros
+from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["expose", "motion_blur", "normal_pair", "splitmix64", "standard_normals"]
+__all__ = ["expose", "motion_blur", "nearest_depth", "normal_pair", "splitmix64", "standard_normals"]
 
 _F = np.float32
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -180,69 +180,223 @@ def expose(radiance, params, out):
 
 
 @jit
-def motion_blur(radiance, depth, fx, fy, cx, cy, rot_a, tr_a, rot_b, tr_b, out, prefix, path):
+def nearest_depth(depth):
+    """The smallest positive finite depth of ``depth`` (m, C-contiguous float32 of any shape; 1e3 if
+    none). Positive floats order as their bit patterns do: an integer minimum, which vectorises."""
+    bits = depth.reshape(depth.size).view(np.int32)
+    inf_bits = np.int32(0x7F800000)
+    best = inf_bits
+    for p in range(bits.size):
+        b = bits[p]
+        best = min(best, b if b > np.int32(0) else inf_bits)
+    if best >= inf_bits:
+        return 1e3
+    value = np.empty(1, np.int32)
+    value[0] = best
+    return float(value.view(np.float32)[0])
+
+
+# ------------------------------------------------------------------ motion blur
+@inline
+def _prefix_rows(radiance, scratch, r, n):
+    """Prefix sums of image rows ``r .. r + n - 1`` (``n`` 1 or 4) into their ring slots."""
+    mask = scratch.prefix.shape[0] - 1
+    w = radiance.shape[1]
+    if n == 4:
+        q0 = scratch.prefix[r & mask]
+        q1 = scratch.prefix[(r + 1) & mask]
+        q2 = scratch.prefix[(r + 2) & mask]
+        q3 = scratch.prefix[(r + 3) & mask]
+        x0 = radiance[r]
+        x1 = radiance[r + 1]
+        x2 = radiance[r + 2]
+        x3 = radiance[r + 3]
+        a0 = a1 = a2 = a3 = _ZERO
+        q0[0] = a0
+        q1[0] = a0
+        q2[0] = a0
+        q3[0] = a0
+        for j in range(w):  # four chains: the adds' latencies overlap
+            a0 += x0[j]
+            a1 += x1[j]
+            a2 += x2[j]
+            a3 += x3[j]
+            q0[j + 1] = a0
+            q1[j + 1] = a1
+            q2[j + 1] = a2
+            q3[j + 1] = a3
+    else:
+        q = scratch.prefix[r & mask]
+        x = radiance[r]
+        acc = _ZERO
+        q[0] = acc
+        for j in range(w):
+            acc += x[j]
+            q[j + 1] = acc
+    for k in range(n):
+        scratch.ring_row[(r + k) & mask] = r + k
+
+
+@inline
+def _ensure_row(radiance, scratch, r, group):
+    """Image row ``r``'s prefix sums in its ring slot, computed if missing (``group``, a constant at
+    each call: with the next three rows, which evicts the slots of rows ``r + 4 - K .. r - 1``)."""
+    if scratch.ring_row[r & (scratch.prefix.shape[0] - 1)] != r:
+        _prefix_rows(radiance, scratch, r, 4 if group and r + 4 <= radiance.shape[0] else 1)
+
+
+@inline
+def _next_break(breaks64, j, w):
+    """The first ``k > j`` where a run of equal offsets starts (``w`` at the row's end)."""
+    k = j + 1
+    word_index = k >> 3
+    word = breaks64[word_index] >> np.uint64(8 * (k & 7))
+    while word == np.uint64(0):
+        word_index += 1
+        word = breaks64[word_index]
+        k = word_index * 8
+    return min(k + (trailing_zeros(word) >> 3), w)
+
+
+@inline
+def _run(orow, g0, f1, w0, w1, x0, x1, p0, p1, js, n, o0, o1):
+    """Pixels ``js .. js + n - 1`` of one output row whose paths start in pixel ``j + o0`` and end in
+    pixel ``j + o1`` of image rows ``x0`` and ``x1`` (prefix sums ``p0``, ``p1``): the first pixel's
+    share, the whole pixels between (prefix sums), the last pixel's share, rows blended. A path
+    within one pixel (``o1 == o0``) takes that pixel's value (the prefix term dropped exactly)."""
+    same = _ONE if o1 == o0 else _ZERO
+    span = _ONE - same
+    for t in range(n):
+        j = np.uint64(js + t)
+        u = np.uint64(js + t + o0)
+        v = np.uint64(js + t + o1)
+        u1 = u + np.uint64(1)
+        g = g0[j] - same
+        s0 = g * x0[u] + f1[j] * x0[v] + (p0[v] - p0[u1]) * span
+        s1 = g * x1[u] + f1[j] * x1[v] + (p1[v] - p1[u1]) * span
+        orow[j] = s0 * w0[j] + s1 * w1[j]
+
+
+@jit
+def _row_runs_ensured(radiance, scratch, orow):
+    """:func:`motion_blur`'s runs of one row, each computing the prefix rows it needs first (a
+    function of its own: that check in the common loop makes it a third slower)."""
+    w = orow.size
+    mask = scratch.prefix.shape[0] - 1
+    o0s, o1s, rows = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
+    g0s, f1s, w0s, w1s = scratch.weights[0], scratch.weights[1], scratch.weights[2], scratch.weights[3]
+    breaks64 = scratch.breaks.view(np.uint64)
+    js = 0
+    while js < w:
+        je = _next_break(breaks64, js, w)
+        r = np.int64(rows[js])
+        _ensure_row(radiance, scratch, r, False)
+        _ensure_row(radiance, scratch, r + 1, False)
+        _run(orow, g0s, f1s, w0s, w1s, radiance[r], radiance[r + 1], scratch.prefix[r & mask],
+             scratch.prefix[(r + 1) & mask], js, je - js, np.int64(o0s[js]), np.int64(o1s[js]))
+        js = je
+
+
+@jit
+def motion_blur(radiance, depth, params, out, scratch):
     """Average each pixel along its scene point's image path between the exposure's ends.
 
+    The path of pixel ``(i, j)`` runs from ``x0`` to ``x1`` (the point's image x at the two ends,
+    clipped to the image, at least 1e-3 px apart) at row ``ym`` (the mean of the ends' rows): the
+    output is the mean of the row, piecewise constant over its pixels, over ``x0 .. x1``, rows
+    ``floor(ym)`` and ``floor(ym) + 1`` blended linearly.
+
     Args:
-        radiance, depth: ``(H, W)`` float32 (depth m along the axis, 0 = far).
-        rot_a, tr_a, rot_b, tr_b: ``(3, 3)``, ``(3,)``: camera(t) -> camera(0) motion at the
-            start and end of the exposure (camera frame, m).
-        out: ``(H, W)`` float32, written. prefix: ``(H, W + 1)`` float64 and path: ``(3, H, W)``
-            float32 scratch.
+        radiance, depth: ``(H, W)`` float32 (depth m along the axis, 0 = far), ``H >= 2``.
+        params: :class:`~agvsim.sensors.render.ray_records.MotionBlurParams`.
+        out: ``(H, W)`` float32, written (not ``radiance``).
+        scratch: :class:`~agvsim.sensors.render.ray_records.BlurScratch` for ``(H, W)``.
     """
     h, w = radiance.shape
-    # prefix[i, j] = sum of row i's pixels 0 .. j - 1 (pixel j covers x = j - 0.5 .. j + 0.5)
+    fx, fy, cx, cy = params.fx, params.fy, params.cx, params.cy
+    ra, rb = params.rot_a, params.rot_b
+    # fx x and fy y / 2 (the ends' image offsets from (cx, cy) times z); pixel j covers x in [j, j + 1)
+    ta0, ta1, ta2 = _F(fx * params.tr_a[0]), _F(0.5 * fy * params.tr_a[1]), _F(params.tr_a[2])
+    tb0, tb1, tb2 = _F(fx * params.tr_b[0]), _F(0.5 * fy * params.tr_b[1]), _F(params.tr_b[2])
+    cx5, cy32 = _F(cx + 0.5), _F(cy)
+    eps, far = _F(1e-3), _F(1e3)
+    kmax0, kmax, ymax = _F(w - 1e-3), _F(w), _F(h - 1.0)
+    o0s, o1s, rows = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
+    g0s, f1s, w0s, w1s = scratch.weights[0], scratch.weights[1], scratch.weights[2], scratch.weights[3]
+    breaks = scratch.breaks
+    breaks64 = breaks.view(np.uint64)
+    breaks[w:] = 1
+    mask = scratch.prefix.shape[0] - 1
+    scratch.ring_row[:] = -1
     for i in range(h):
-        acc = 0.0
-        prefix[i, 0] = 0.0
-        for j in range(w):
-            acc += radiance[i, j]
-            prefix[i, j + 1] = acc
-    a00, a01, a02 = rot_a[0, 0], rot_a[0, 1], rot_a[0, 2]
-    a10, a11, a12 = rot_a[1, 0], rot_a[1, 1], rot_a[1, 2]
-    a20, a21, a22 = rot_a[2, 0], rot_a[2, 1], rot_a[2, 2]
-    b00, b01, b02 = rot_b[0, 0], rot_b[0, 1], rot_b[0, 2]
-    b10, b11, b12 = rot_b[1, 0], rot_b[1, 1], rot_b[1, 2]
-    b20, b21, b22 = rot_b[2, 0], rot_b[2, 1], rot_b[2, 2]
-    ta0, ta1, ta2 = tr_a[0], tr_a[1], tr_a[2]
-    tb0, tb1, tb2 = tr_b[0], tr_b[1], tr_b[2]
-    inv_fx = 1.0 / fx
-    inv_fy = 1.0 / fy
-    # pass 1 (vectorised): each pixel's path, x from x0 to x1 at row ym
-    for i in range(h):
-        yn = (i - cy) * inv_fy
-        for j in range(w):
-            z = depth[i, j]
-            z = z if z > 0.0 else 1.0e3
-            X = (j - cx) * inv_fx * z
-            Y = yn * z
-            pxa = a00 * X + a01 * Y + a02 * z + ta0
-            pya = a10 * X + a11 * Y + a12 * z + ta1
-            qa = 1.0 / max(a20 * X + a21 * Y + a22 * z + ta2, 1e-3)
-            pxb = b00 * X + b01 * Y + b02 * z + tb0
-            pyb = b10 * X + b11 * Y + b12 * z + tb1
-            qb = 1.0 / max(b20 * X + b21 * Y + b22 * z + tb2, 1e-3)
-            ax = cx + fx * pxa * qa
-            bx = cx + fx * pxb * qb
-            lo = min(max(min(ax, bx), -0.5), w - 0.5 - 1e-3)
-            hi = min(max(max(ax, bx), lo + 1e-3), w - 0.5)
-            path[0, i, j] = lo + 0.5
-            path[1, i, j] = hi + 0.5
-            path[2, i, j] = min(max(cy + 0.5 * fy * (pya * qa + pyb * qb), 0.0), h - 1.0)
-    # pass 2: the row integrals (piecewise constant pixels) between x0 and x1, rows blended at ym
-    for i in range(h):
-        for j in range(w):
-            k0 = path[0, i, j]
-            k1 = path[1, i, j]
-            ym = path[2, i, j]
-            r0 = min(int(ym), h - 2)
-            fr = ym - r0
-            a0 = min(int(k0), w - 1)
-            a1 = min(int(k1), w - 1)
-            f0 = k0 - a0
-            f1 = k1 - a1
-            s0 = (prefix[r0, a1] + f1 * (prefix[r0, a1 + 1] - prefix[r0, a1])
-                  - prefix[r0, a0] - f0 * (prefix[r0, a0 + 1] - prefix[r0, a0]))
-            s1 = (prefix[r0 + 1, a1] + f1 * (prefix[r0 + 1, a1 + 1] - prefix[r0 + 1, a1])
-                  - prefix[r0 + 1, a0] - f0 * (prefix[r0 + 1, a0 + 1] - prefix[r0 + 1, a0]))
-            out[i, j] = (s0 + (s1 - s0) * fr) / (k1 - k0)
+        # the point of pixel (i, j) at depth z is z (x_n(j), y_n, 1) at mid-exposure; each row of
+        # rot . (x_n(j), y_n, 1) is c0 + c1 j along the image row
+        yn = (i - cy) / fy
+        xa0 = _F(fx * (ra[0, 1] * yn + ra[0, 2]) - ra[0, 0] * cx)
+        xa1 = _F(ra[0, 0])
+        ya0 = _F(0.5 * fy * (ra[1, 1] * yn + ra[1, 2] - ra[1, 0] * cx / fx))
+        ya1 = _F(0.5 * fy * ra[1, 0] / fx)
+        za0 = _F(ra[2, 1] * yn + ra[2, 2] - ra[2, 0] * cx / fx)
+        za1 = _F(ra[2, 0] / fx)
+        xb0 = _F(fx * (rb[0, 1] * yn + rb[0, 2]) - rb[0, 0] * cx)
+        xb1 = _F(rb[0, 0])
+        yb0 = _F(0.5 * fy * (rb[1, 1] * yn + rb[1, 2] - rb[1, 0] * cx / fx))
+        yb1 = _F(0.5 * fy * rb[1, 0] / fx)
+        zb0 = _F(rb[2, 1] * yn + rb[2, 2] - rb[2, 0] * cx / fx)
+        zb1 = _F(rb[2, 0] / fx)
+        drow = depth[i]
+        jf = _ZERO
+        rmin = np.int32(h)
+        rmax = np.int32(0)
+        for j in range(w):  # each pixel's path (vectorised)
+            z = drow[j]
+            z = z if z > _ZERO else far
+            pxa = z * (xa0 + xa1 * jf) + ta0
+            pya = z * (ya0 + ya1 * jf) + ta1
+            pza = max(z * (za0 + za1 * jf) + ta2, eps)
+            pxb = z * (xb0 + xb1 * jf) + tb0
+            pyb = z * (yb0 + yb1 * jf) + tb1
+            pzb = max(z * (zb0 + zb1 * jf) + tb2, eps)
+            q = _ONE / (pza * pzb)
+            qa = pzb * q
+            qb = pza * q
+            ax = cx5 + pxa * qa
+            bx = cx5 + pxb * qb
+            k0 = min(max(min(ax, bx), _ZERO), kmax0)
+            k1 = min(max(max(ax, bx), k0 + eps), kmax)
+            ym = min(max(cy32 + pya * qa + pyb * qb, _ZERO), ymax)
+            r0 = min(np.int32(ym), np.int32(h - 2))
+            a0 = np.int32(k0)
+            a1 = min(np.int32(k1), np.int32(w - 1))
+            ji = np.int32(j)
+            o0s[j] = a0 - ji
+            o1s[j] = a1 - ji
+            rows[j] = r0
+            rmin = min(rmin, r0)
+            rmax = max(rmax, r0)
+            fr = ym - _F(r0)
+            inv = _ONE / (k1 - k0)
+            g0s[j] = (_F(a0) + _ONE) - k0
+            f1s[j] = k1 - _F(a1)
+            w0s[j] = (_ONE - fr) * inv
+            w1s[j] = fr * inv
+            jf += _ONE
+        breaks[0] = 1
+        for j in range(1, w):
+            breaks[j] = (o0s[j] != o0s[j - 1]) | (o1s[j] != o1s[j - 1]) | (rows[j] != rows[j - 1])
+        orow = out[i]
+        if rmax + 4 - rmin < scratch.prefix.shape[0]:
+            # every row this row's paths reach fits the ring at once (always, but for vertical smears
+            # of about the ring's size): runs of pixels with the same offsets and rows read
+            # contiguous memory (vectorised)
+            for r in range(rmin, rmax + 2):
+                _ensure_row(radiance, scratch, r, True)
+            js = 0
+            while js < w:
+                je = _next_break(breaks64, js, w)
+                r = np.int64(rows[js])
+                _run(orow, g0s, f1s, w0s, w1s, radiance[r], radiance[r + 1], scratch.prefix[r & mask],
+                     scratch.prefix[(r + 1) & mask], js, je - js, np.int64(o0s[js]), np.int64(o1s[js]))
+                js = je
+        else:
+            _row_runs_ensured(radiance, scratch, orow)
