@@ -198,51 +198,18 @@ def nearest_depth(depth):
 
 # ------------------------------------------------------------------ motion blur
 @inline
-def _prefix_rows(radiance, scratch, r, n):
-    """Prefix sums of image rows ``r .. r + n - 1`` (``n`` 1 or 4) into their ring slots."""
-    mask = scratch.prefix.shape[0] - 1
-    w = radiance.shape[1]
-    if n == 4:
-        q0 = scratch.prefix[r & mask]
-        q1 = scratch.prefix[(r + 1) & mask]
-        q2 = scratch.prefix[(r + 2) & mask]
-        q3 = scratch.prefix[(r + 3) & mask]
-        x0 = radiance[r]
-        x1 = radiance[r + 1]
-        x2 = radiance[r + 2]
-        x3 = radiance[r + 3]
-        a0 = a1 = a2 = a3 = _ZERO
-        q0[0] = a0
-        q1[0] = a0
-        q2[0] = a0
-        q3[0] = a0
-        for j in range(w):  # four chains: the adds' latencies overlap
-            a0 += x0[j]
-            a1 += x1[j]
-            a2 += x2[j]
-            a3 += x3[j]
-            q0[j + 1] = a0
-            q1[j + 1] = a1
-            q2[j + 1] = a2
-            q3[j + 1] = a3
-    else:
-        q = scratch.prefix[r & mask]
+def _ensure_row(radiance, scratch, r):
+    """Image row ``r``'s prefix sums in its ring slot (computed if missing, evicting row ``r - K``)."""
+    slot = r & (scratch.prefix.shape[0] - 1)
+    if scratch.ring_row[slot] != r:
+        q = scratch.prefix[slot]
         x = radiance[r]
         acc = _ZERO
         q[0] = acc
-        for j in range(w):
+        for j in range(x.size):
             acc += x[j]
             q[j + 1] = acc
-    for k in range(n):
-        scratch.ring_row[(r + k) & mask] = r + k
-
-
-@inline
-def _ensure_row(radiance, scratch, r, group):
-    """Image row ``r``'s prefix sums in its ring slot, computed if missing (``group``, a constant at
-    each call: with the next three rows, which evicts the slots of rows ``r + 4 - K .. r - 1``)."""
-    if scratch.ring_row[r & (scratch.prefix.shape[0] - 1)] != r:
-        _prefix_rows(radiance, scratch, r, 4 if group and r + 4 <= radiance.shape[0] else 1)
+        scratch.ring_row[slot] = r
 
 
 @inline
@@ -290,8 +257,8 @@ def _row_runs_ensured(radiance, scratch, orow):
     while js < w:
         je = _next_break(breaks64, js, w)
         r = np.int64(rows[js])
-        _ensure_row(radiance, scratch, r, False)
-        _ensure_row(radiance, scratch, r + 1, False)
+        _ensure_row(radiance, scratch, r)
+        _ensure_row(radiance, scratch, r + 1)
         _run(orow, g0s, f1s, w0s, w1s, radiance[r], radiance[r + 1], scratch.prefix[r & mask],
              scratch.prefix[(r + 1) & mask], js, je - js, np.int64(o0s[js]), np.int64(o1s[js]))
         js = je
@@ -385,12 +352,12 @@ def motion_blur(radiance, depth, params, out, scratch):
         for j in range(1, w):
             breaks[j] = (o0s[j] != o0s[j - 1]) | (o1s[j] != o1s[j - 1]) | (rows[j] != rows[j - 1])
         orow = out[i]
-        if rmax + 4 - rmin < scratch.prefix.shape[0]:
+        if rmax + 1 - rmin < scratch.prefix.shape[0]:
             # every row this row's paths reach fits the ring at once (always, but for vertical smears
             # of about the ring's size): runs of pixels with the same offsets and rows read
             # contiguous memory (vectorised)
             for r in range(rmin, rmax + 2):
-                _ensure_row(radiance, scratch, r, True)
+                _ensure_row(radiance, scratch, r)
             js = 0
             while js < w:
                 je = _next_break(breaks64, js, w)

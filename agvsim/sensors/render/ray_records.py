@@ -187,8 +187,8 @@ class BlurScratch(NamedTuple):
 
     @classmethod
     def of(cls, height: int, width: int, ring_rows: int = 32) -> BlurScratch:
-        """Scratch for ``(height, width)`` images (``ring_rows`` a power of 2: vertical smears up to
-        ``ring_rows - 5`` rows keep the fast path)."""
+        """Scratch for ``(height, width)`` images (``ring_rows`` a power of 2: rows whose paths span
+        fewer than ``ring_rows - 1`` image rows take the fast path)."""
         if height < 2 or width < 1 or ring_rows < 2 or ring_rows & (ring_rows - 1):
             raise ValueError(f"BlurScratch needs height >= 2, width >= 1, a power-of-2 ring >= 2; got "
                              f"{height}, {width}, {ring_rows}")
