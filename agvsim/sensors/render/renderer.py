@@ -249,7 +249,7 @@ class CameraRenderer:
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
                               float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)
-        expose(radiance, params, image)
+        expose(np.ascontiguousarray(radiance), params, image)  # the kernel reads it flat
         return image, depth
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
