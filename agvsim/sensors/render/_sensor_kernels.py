@@ -14,7 +14,12 @@ in NumPy and OpenCV), written so that LLVM vectorises the per-pixel loops (8 lan
   pixel's depth), as :func:`agvsim.sensors.render.sensor.motion_blur`; the path's
   horizontal extent is integrated exactly (row prefix sums), its vertical position is
   taken at the path's midpoint (a level camera moving in the floor plane smears rows
-  sideways; the vertical drift is a small fraction of a pixel at AGV speeds).
+  sideways; the vertical drift is a small fraction of a pixel at AGV speeds). Per image row,
+  in float32: every pixel's path (vectorised), then runs of pixels whose paths start and end
+  at the same offsets read contiguous memory (vectorised; gathers are no faster than scalar
+  loads here, and a loop that gathers and stores does not vectorise). Row prefix sums are
+  kept for a ring of rows; their float32 rounding leaves the result within about 1e-5 of the
+  frame's maximum of the float64 model (tested at 2e-5).
 
 Accuracy of the noise (:func:`normal_pair`): the uniform of the radius keeps 24 significant
 bits over the whole 64-bit range (``u >= 2**-64``: radii up to 9.4 sigma, so the tails are
