@@ -135,7 +135,8 @@ def test_same_seed_same_frame_and_fresh_noise_every_frame(ray_renderers, hall, m
 
 
 def test_sensor_noise_is_gaussian_with_the_models_sigma():
-    """The compiled generator: mean 0, unit variance, Gaussian tails (ziggurat)."""
+    """The compiled generator: mean 0, unit variance, Gaussian tails (Box-Muller; the generator
+    itself: tests/render/test_sensor_kernels.py)."""
     from agvsim.sensors.render._sensor_kernels import expose
     from agvsim.sensors.render.ray_records import SensorParams
 
@@ -147,6 +148,7 @@ def test_sensor_noise_is_gaussian_with_the_models_sigma():
     z = (grey - 105.0) / sigma
     assert abs(z.mean()) < 0.02 and abs(z.std() - 1.0) < 0.03
     assert 0.040 < np.mean(np.abs(z) > 2.0) < 0.051  # 4.55 % for a Gaussian
+    assert 0.0020 < np.mean(np.abs(z) > 3.0) < 0.0032  # 0.26 % (|grey - 105| >= 43 of sigma 14.1)
 
 
 # ------------------------------------------------------------- against pyrender

@@ -3,7 +3,9 @@
 The scene is flattened once per map into the array tuples below (:class:`Solids`,
 :class:`Faces`, :class:`Decals`, :class:`Textures`, :class:`Light`, :class:`Floor`) by
 :mod:`agvsim.sensors.render.raycast`; each frame adds a :class:`View`. Units: metres,
-pixels, radians; map frame x east, y north, z up. This module imports no numba.
+pixels, radians; map frame x east, y north, z up. The sensor stages
+(:mod:`agvsim.sensors.render._sensor_kernels`) take a :class:`SensorParams` and a
+:class:`MotionBlurParams` per frame and a :class:`BlurScratch` per camera. This module imports no numba.
 """
 from __future__ import annotations
 
@@ -12,7 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Decals", "Faces", "Floor", "Light", "SensorParams", "SpanKind", "Solids", "Textures", "View"]
+__all__ = ["BlurScratch", "Decals", "Faces", "Floor", "Light", "MotionBlurParams", "SensorParams", "Solids", "SpanKind",
+           "Textures", "View"]
 
 
 class SpanKind(IntEnum):
@@ -155,3 +158,41 @@ class SensorParams(NamedTuple):
     read_noise: float  # grey levels, sigma
     noise_scale: float  # multiplies both sigmas; 0 = no noise
     seed: int  # this frame's noise stream (drawn from the run's Generator)
+
+
+class MotionBlurParams(NamedTuple):
+    """The camera's motion over one exposure (:func:`agvsim.sensors.render.sensor.exposure_motion`):
+    ``p(0) = rot p(t) + tr`` takes a point from the camera frame at the exposure's start (``a``)
+    or end (``b``) to the camera frame at mid-exposure (camera axes, m)."""
+
+    fx: float  # px
+    fy: float  # px
+    cx: float  # px
+    cy: float  # px
+    rot_a: np.ndarray  # (3, 3) float64
+    tr_a: np.ndarray  # (3,) float64, m
+    rot_b: np.ndarray  # (3, 3) float64
+    tr_b: np.ndarray  # (3,) float64, m
+
+
+class BlurScratch(NamedTuple):
+    """Work arrays of the motion blur for one image size, allocated once (:meth:`of`) and
+    overwritten by every frame: the prefix sums of a ring of ``K`` image rows, and the current
+    row's per-pixel paths."""
+
+    prefix: np.ndarray  # (K, W + 1) float32, prefix[s, j] = sum of pixels 0 .. j - 1 of the row in slot s
+    ring_row: np.ndarray  # (K,) int64, image row held by each slot (-1: none); K a power of 2
+    offsets: np.ndarray  # (3, W) int32, per pixel j: floor(x0) - j, floor(x1) - j, first path row
+    weights: np.ndarray  # (4, W) float32, per pixel: shares of the path's first and last pixel, row weights / length
+    breaks: np.ndarray  # (W + 8 rounded up to a multiple of 8,) uint8, 1 where the offsets change
+
+    @classmethod
+    def of(cls, height: int, width: int, ring_rows: int = 32) -> BlurScratch:
+        """Scratch for ``(height, width)`` images (``ring_rows`` a power of 2: rows whose paths span
+        fewer than ``ring_rows - 1`` image rows take the fast path)."""
+        if height < 2 or width < 1 or ring_rows < 2 or ring_rows & (ring_rows - 1):
+            raise ValueError(f"BlurScratch needs height >= 2, width >= 1, a power-of-2 ring >= 2; got "
+                             f"{height}, {width}, {ring_rows}")
+        return cls(np.zeros((ring_rows, width + 1), np.float32), np.full(ring_rows, -1, np.int64),
+                   np.zeros((3, width), np.int32), np.zeros((4, width), np.float32),
+                   np.ones(-(-(width + 8) // 8) * 8, np.uint8))

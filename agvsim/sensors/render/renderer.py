@@ -220,20 +220,28 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        from agvsim.sensors.render._sensor_kernels import expose, motion_blur
-        from agvsim.sensors.render.ray_records import SensorParams
+        from agvsim.sensors.render._sensor_kernels import (
+            expose,
+            motion_blur,
+            nearest_depth,
+        )
+        from agvsim.sensors.render.ray_records import (
+            BlurScratch,
+            MotionBlurParams,
+            SensorParams,
+        )
 
         c = self.camera
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level)
         v, w = conditions.velocity
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
-                                        conditions.exposure_time)
+                                        conditions.exposure_time, z_min=nearest_depth(depth))
             if motion is not None:
-                if self._blur_scratch is None:
-                    self._blur_scratch = (np.empty((c.height, c.width + 1)), np.empty((3, c.height, c.width), np.float32))
-                blurred = np.empty_like(radiance)
-                motion_blur(radiance, depth, c.fx, c.fy, c.cx, c.cy, *motion[:4], blurred, *self._blur_scratch)
+                if self._blur_scratch is None:  # the blurred frame and the blur's work arrays, reused
+                    self._blur_scratch = (np.empty((c.height, c.width), np.float32), BlurScratch.of(c.height, c.width))
+                blurred, scratch = self._blur_scratch
+                motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
                 radiance = blurred
         radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
@@ -241,7 +249,7 @@ class CameraRenderer:
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
                               float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)
-        expose(radiance, params, image)
+        expose(np.ascontiguousarray(radiance), params, image)  # the kernel reads it flat
         return image, depth
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):

@@ -53,7 +53,8 @@ class SensorModel:
 
 def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
                     twist_cam: tuple[np.ndarray, np.ndarray], exposure_time: float,
-                    max_samples: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int] | None:
+                    max_samples: int = 16, z_min: float | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int] | None:
     """The camera's motion over the exposure: ``(rot_a, tr_a, rot_b, tr_b, n)``, camera(t) ->
     camera(0) at the exposure's start and end (rotation ``(3, 3)``, translation ``(3,)`` m) and
     the number of samples ``n`` along each pixel's path (from the largest image motion,
@@ -62,12 +63,15 @@ def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
     Args:
         radiance: ``(H, W)`` (its shape only). depth: ``(H, W)`` m along the axis, 0 = far.
         twist_cam: ``(v, w)``: linear (m/s) and angular (rad/s) velocity, ``(3,)`` each, camera frame.
+        z_min: the smallest positive depth (m) if the caller has it (1e3 if none), else taken
+            from ``depth``.
     """
     import cv2
 
     v, w = (np.asarray(a, float) for a in twist_cam)
     h, wd = radiance.shape
-    z_min = float(np.min(depth[depth > 0])) if np.any(depth > 0) else 1e3
+    if z_min is None:
+        z_min = float(np.min(depth[depth > 0])) if np.any(depth > 0) else 1e3
     flow_rot = exposure_time * (abs(w[1]) * camera.fx + abs(w[0]) * camera.fy + abs(w[2]) * max(h, wd) / 2)
     flow_tr = exposure_time * float(np.linalg.norm(v)) * camera.fx / max(min(z_min, 1e3), 0.1)
     if flow_rot + flow_tr < 0.05:
