@@ -12,6 +12,7 @@ centre, drawn as the homography of a level frame rendered a little larger
 """
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -203,22 +204,35 @@ def _flatten_geometry(scene: SceneDescription, keys: dict[str, int], mesh_geomet
 def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_keys: set[str]) -> Textures:
     """The textures in ``keys``: summed-area tables (float64, rows from the bottom: ``v`` up) of
     the decals' (they are integrated exactly), mip levels of the surfaces' (sampled as the
-    reference samples them); each texture gets only what the kernels read of it."""
+    reference samples them); each texture gets only what the kernels read of it.
+
+    Decals with the same texels share one table (a map's hazard signs are all alike); each
+    table is summed in place, so building holds no temporaries of its size."""
     tiled = {p.texture: p.tiled for p in scene.parts}
     order = sorted(keys, key=keys.get)
-    sizes = [(scene.textures[k].shape[0] + 1) * (scene.textures[k].shape[1] + 1) if k in decal_keys else 0
-             for k in order]
-    offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    sat = np.zeros(max(int(sum(sizes)), 1), np.float64)
-    width, height = [], []
-    for k, off in zip(order, offset):
-        h, w = scene.textures[k].shape
-        width.append(w)
-        height.append(h)
-        if k in decal_keys:
-            t = np.asarray(scene.textures[k], np.float64)[::-1]  # row 0 at v = 0
-            table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
-            table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
+    tables: dict[tuple, int] = {}  # (shape, digest of the texels) -> offset of their table
+    offset = np.zeros(len(order), np.int64)
+    width, height, unique = [], [], []
+    size = 0
+    for k, key in enumerate(order):
+        tex = np.ascontiguousarray(scene.textures[key])
+        height.append(tex.shape[0])
+        width.append(tex.shape[1])
+        if key not in decal_keys:
+            continue
+        same = (tex.shape, tex.dtype.str, hashlib.sha256(tex).digest())
+        if same not in tables:
+            tables[same] = size
+            unique.append((size, tex))
+            size += (tex.shape[0] + 1) * (tex.shape[1] + 1)
+        offset[k] = tables[same]
+    sat = np.zeros(max(size, 1), np.float64)
+    for off, tex in unique:
+        h, w = tex.shape
+        table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)[1:, 1:]
+        table[...] = tex[::-1]  # row 0 at v = 0
+        np.cumsum(table, axis=0, out=table)
+        np.cumsum(table, axis=1, out=table)
     levels = [_mip_levels(np.asarray(scene.textures[k], np.float32)[::-1], tiled.get(k, True))
               if k not in decal_keys else [np.zeros((1, 1), np.float32)] for k in order]
     n_lev = max(len(lv) for lv in levels)
@@ -232,8 +246,9 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
             mip_h[k, lvl], mip_w[k, lvl] = img.shape
             chunks.append(img.ravel())
             pos += img.size
+    mip = np.concatenate(chunks).astype(np.float32, copy=False)
     return Textures(sat, offset, np.asarray(width, np.int64), np.asarray(height, np.int64),
-                    np.asarray([tiled.get(k, True) for k in order], np.bool_), np.concatenate(chunks).astype(np.float32),
+                    np.asarray([tiled.get(k, True) for k in order], np.bool_), mip,
                     mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64))
 
 
