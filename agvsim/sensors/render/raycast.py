@@ -206,8 +206,10 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
     the decals' (they are integrated exactly), mip levels of the surfaces' (sampled as the
     reference samples them); each texture gets only what the kernels read of it.
 
-    Decals with the same texels share one table (a map's hazard signs are all alike); each
-    table is summed in place, so building holds no temporaries of its size."""
+    A decal's table is of its texels at their information content (:func:`_coarsest_texels`: a
+    target's bars and margins are blocks of 128 x 128 equal texels, integrated the same over
+    one); decals with the same texels share one table (a map's hazard signs are all alike);
+    each table is summed in place, so building holds no temporaries of its size."""
     tiled = {p.texture: p.tiled for p in scene.parts}
     order = sorted(keys, key=keys.get)
     tables: dict[tuple, int] = {}  # (shape, digest of the texels) -> offset of their table
@@ -216,6 +218,8 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
     size = 0
     for k, key in enumerate(order):
         tex = np.ascontiguousarray(scene.textures[key])
+        if key in decal_keys:
+            tex = _coarsest_texels(tex)
         height.append(tex.shape[0])
         width.append(tex.shape[1])
         if key not in decal_keys:
@@ -250,6 +254,19 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
     return Textures(sat, offset, np.asarray(width, np.int64), np.asarray(height, np.int64),
                     np.asarray([tiled.get(k, True) for k in order], np.bool_), mip,
                     mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64))
+
+
+def _coarsest_texels(tex: np.ndarray) -> np.ndarray:
+    """``tex`` on the coarsest texel grid on which it is the same piecewise-constant picture: each
+    texel of the result is a ``fy x fx`` block of equal texels of ``tex``, ``fx`` the greatest
+    common divisor of the width and of every column where the texels change (``fy`` likewise
+    for rows). Its integral over any box is the same function of the box as ``tex``'s."""
+    h, w = tex.shape
+    cols = np.flatnonzero(np.any(tex[:, 1:] != tex[:, :-1], axis=0)) + 1
+    rows = np.flatnonzero(np.any(tex[1:] != tex[:-1], axis=1)) + 1
+    fx = math.gcd(w, *cols.tolist())
+    fy = math.gcd(h, *rows.tolist())
+    return np.ascontiguousarray(tex[::fy, ::fx])
 
 
 def _mip_levels(img: np.ndarray, tiled: bool) -> list[np.ndarray]:
