@@ -58,6 +58,8 @@ class RaycastBackend:
         x0, y0, x1, y1 = scene.floor
         self.floor = Floor(float(x0), float(y0), float(x1), float(y1), keys[floor_key], float(tw), float(th),
                            float(scene.background))
+        #: the scene's texture key of each texture index of the kernels' records
+        self.texture_keys = tuple(sorted(keys, key=keys.get))
         self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals})
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
