@@ -273,14 +273,27 @@ def _coarsest_texels(tex: np.ndarray) -> np.ndarray:
 
 def _mip_levels(img: np.ndarray, tiled: bool) -> list[np.ndarray]:
     """Box-filtered levels of ``img`` down to one texel (each half the size, rounded up)."""
-    import cv2
-
     out = [np.ascontiguousarray(img, np.float32)]
     while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
-        prev = out[-1]
-        h, w = prev.shape
-        out.append(cv2.resize(prev, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA))
+        out.append(_half_size(out[-1]))
     return out
+
+
+def _half_size(img: np.ndarray) -> np.ndarray:
+    """``img`` (float32) at half its size, each texel the mean of the 2 x 2 (or 2, along a side of
+    one texel) texels it covers, ``((a + b) + (c + d)) / 4`` in float32 (OpenCV's ``INTER_AREA``
+    for a factor of two; it sums the last columns of a row in another order). An odd side goes
+    to OpenCV's area resampling, which rounds it up."""
+    h, w = img.shape
+    if (h > 1 and h % 2) or (w > 1 and w % 2):
+        import cv2
+
+        return cv2.resize(img, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA)
+    if w > 1:
+        img = img[:, 0::2] + img[:, 1::2]
+    if h > 1:
+        img = img[0::2] + img[1::2]
+    return img * np.float32(0.25 if h > 1 and w > 1 else 0.5)
 
 
 def _top_albedo(scene: SceneDescription, keys: dict[str, int]) -> np.ndarray:

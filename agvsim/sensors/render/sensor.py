@@ -22,6 +22,7 @@ import numpy as np
 from localizer.numeric import check_number
 
 from localizer.camera import Camera
+from agvsim.sensors.render.mount import rotation_from_vector
 
 
 def _nonneg(owner: str, name: str, value) -> float:
@@ -63,8 +64,6 @@ def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
         radiance: ``(H, W)`` (its shape only). depth: ``(H, W)`` m along the axis, 0 = far.
         twist_cam: ``(v, w)``: linear (m/s) and angular (rad/s) velocity, ``(3,)`` each, camera frame.
     """
-    import cv2
-
     v, w = (np.asarray(a, float) for a in twist_cam)
     h, wd = radiance.shape
     z_min = float(np.min(depth[depth > 0])) if np.any(depth > 0) else 1e3
@@ -76,7 +75,7 @@ def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
     ends = []
     for t in (-0.5, 0.5):
         dt = t * exposure_time
-        ends.append(cv2.Rodrigues(np.asarray(w * dt, float).reshape(3, 1))[0])
+        ends.append(rotation_from_vector(w * dt))
         ends.append(v * dt)
     return ends[0], ends[1], ends[2], ends[3], n
 
