@@ -73,3 +73,45 @@ def test_decal_tables_are_compact_and_shared(plant):
                if key.startswith(("target:", "distractor:")))
     assert tex.sat.size < 0.3 * full
     assert tex.sat.nbytes < 12e6  # bytes; 40 MB before the tables were compacted
+
+
+def test_surface_mip_levels_are_opencvs_area_halving(plant):
+    cv2 = pytest.importorskip("cv2")
+    scene, backend = plant
+    tex = backend.textures
+    for k, key in enumerate(backend.texture_keys):
+        if key.startswith(("target:", "distractor:")):
+            continue
+        level = np.ascontiguousarray(np.asarray(scene.textures[key], np.float32)[::-1])
+        for lvl in range(int(tex.mip_levels[k])):
+            h, w = int(tex.mip_height[k, lvl]), int(tex.mip_width[k, lvl])
+            got = tex.mip[tex.mip_offset[k, lvl]:tex.mip_offset[k, lvl] + h * w].reshape(h, w)
+            assert got.shape == level.shape
+            # the same box means; OpenCV sums the last columns of a row in another order (last bit)
+            np.testing.assert_allclose(got, level, rtol=0, atol=2e-7, err_msg=f"{key} level {lvl}")
+            level = cv2.resize(level, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA)
+
+
+def test_cubic_resize_is_opencvs_inter_cubic():
+    cv2 = pytest.importorskip("cv2")
+    from agvsim.sensors.render.textures import cubic_resize
+
+    rng = np.random.default_rng(5)
+    for small, shape in (((8, 8), (256, 256)), ((64, 64), (256, 256)), ((2, 2), (256, 256)), ((5, 7), (100, 40))):
+        img = rng.normal(0.0, 1.0, small).astype(np.float32)
+        got = cubic_resize(img, shape)
+        ref = cv2.resize(img, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
+        assert got.dtype == np.float32 and got.shape == ref.shape
+        # the same weights and taps; the sums' rounding is OpenCV's kernels' own
+        np.testing.assert_allclose(got, ref, rtol=0, atol=3e-6 * float(np.max(np.abs(ref))))
+
+
+def test_rotation_from_vector_is_cv2_rodrigues_to_the_bit():
+    cv2 = pytest.importorskip("cv2")
+    from agvsim.sensors.render.mount import rotation_from_vector
+
+    rng = np.random.default_rng(7)
+    vectors = [np.zeros(3), np.array([0.0, 0.0, 1e-17]), np.array([np.pi, 0.0, 0.0])]
+    vectors += [rng.normal(0.0, 1.0, 3) * 10.0 ** rng.uniform(-9, 1) for _ in range(2000)]
+    for r in vectors:
+        assert np.array_equal(rotation_from_vector(r), cv2.Rodrigues(r.reshape(3, 1))[0]), r
