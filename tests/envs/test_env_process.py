@@ -31,6 +31,6 @@ print("loaded:", loaded)
 
 
 def test_a_rendered_env_process_imports_no_gl_opencv_filterpy_or_scipy_stats():
-    out = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=600)
+    out = subprocess.run([sys.executable, "-c", SCRIPT], check=False, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == "loaded: []", out.stdout
