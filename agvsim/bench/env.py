@@ -4,7 +4,9 @@ Each configuration runs in a fresh process (``spawn``), so its peak resident
 memory is that of one env process: reset, then a fixed number of steps with
 a fixed pseudo-random policy, timed after a short warm-up. Reported: policy
 steps per second on one core, the real-time factor (simulated over wall
-seconds), the peak RSS of the process, and a breakdown of the wall time per
+seconds), the peak RSS of the process (its own: ``VmHWM``, see :func:`peak_rss_mb`) with
+what of its resident memory at the end is private (anonymous) and what is mapped library
+files (shared by every process that maps them), and a breakdown of the wall time per
 simulated second:
 
     physics   ``Simulation.step``: pymunk, encoders, dead reckoning
@@ -24,6 +26,9 @@ import multiprocessing as mp
 
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.registry import SOURCES
+
+#: issue 12's floor: peak memory of one env process, rendered observations on the raycast backend
+FLOOR_PEAK_RSS_MB = 300.0
 
 CONFIGS = {
     "state": {"observe_image": False},
@@ -89,12 +94,45 @@ def measure(env_id: str, kwargs: dict, steps: int, warmup: int = 20) -> dict:
             "real_time_factor": simulated / wall, "breakdown": breakdown}
 
 
-def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
+def peak_rss_mb() -> float:
+    """This process's peak resident memory (MB): ``VmHWM`` of ``/proc/self/status``, the high-water
+    mark of its own address space. Not ``getrusage``'s ``ru_maxrss``: on Linux a child started
+    with ``spawn`` (vfork + exec) inherits its parent's peak into that (a parent at 500 MB gives
+    every child 500 MB). Elsewhere ``ru_maxrss`` (KiB; bytes on macOS)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     import resource
+    import sys
 
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2.0 ** 20 if sys.platform == "darwin" else peak / 1024.0
+
+
+def resident_mb() -> dict[str, float]:
+    """This process's resident memory now (MB, Linux; empty elsewhere): ``anon`` (private: heap,
+    arrays, compiled code) and ``file`` (pages of mapped files, mostly shared libraries: shared
+    with every process that maps them, and on kernels with large page-cache folios counted in
+    whole folios)."""
+    out = {}
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                if key in ("RssAnon", "RssFile"):
+                    out["anon" if key == "RssAnon" else "file"] = int(value.split()[0]) / 1024.0
+    except OSError:
+        pass
+    return out
+
+
+def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
     result = measure(env_id, kwargs, steps)
-    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    queue.put({**result, "peak_rss_mb": peak_kib / 1024.0})
+    queue.put({**result, "peak_rss_mb": peak_rss_mb(), "rss_end_mb": resident_mb()})
 
 
 def run(args) -> dict:
@@ -120,7 +158,7 @@ def run(args) -> dict:
         proc.join()
         results[name] = {**kwargs, **result}
     return {"benchmark": "env", "env_id": args.env_id, "configs": results, "skipped": skipped,
-            "floor_peak_rss_mb_with_images": 500.0}
+            "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB}
 
 
 def format_table(result: dict) -> str:
@@ -143,5 +181,11 @@ def format_table(result: dict) -> str:
         lines.append("physics: Simulation.step (pymunk, encoders, dead reckoning); render: drawing frames; "
                      "localize: finding the targets (the rest of the source's observe); filter: EKF "
                      "odometry, predict, associate, update; rest: env adapter, task, observations, wrappers")
-    lines.append(f"floor: peak RSS <= {result['floor_peak_rss_mb_with_images']:.0f} MB per env process with images")
+    ends = [f"{name} {r['rss_end_mb']['anon']:.0f} + {r['rss_end_mb']['file']:.0f}"
+            for name, r in result["configs"].items() if {"anon", "file"} <= set(r.get("rss_end_mb", ()))]
+    if ends:
+        lines.append("resident at the end, private + mapped library files (shared between processes), MB: "
+                     + ", ".join(ends))
+    lines.append(f"floor: peak RSS <= {result['floor_peak_rss_mb']:.0f} MB per env process "
+                 "(rendered observations, raycast backend; issue 12)")
     return "\n".join(lines)
