@@ -324,10 +324,11 @@ def _light(ill: Illumination, faces: Faces) -> Light:
     rows, cols = ill.zone_raster.shape
     xs = ill.raster_origin[0] + np.arange(cols) * ill.raster_res
     ys = ill.raster_origin[1] + np.arange(rows) * ill.raster_res
-    gx, gy = np.meshgrid(xs, ys)
-    pts = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
-    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
-    floor_irr = ill.irradiance(pts, up).astype(np.float32)
+    floor_irr = np.empty((rows, cols), np.float32)
+    for r0 in range(0, rows, 32):  # in blocks of rows (each cell on its own): small temporaries
+        gx, gy = np.meshgrid(xs, ys[r0:r0 + 32])
+        pts = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
+        floor_irr[r0:r0 + 32] = ill.irradiance(pts, np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape))
     zone = np.ascontiguousarray(ill.zone_raster, np.float32)
     res = FACE_LIGHT_RES
     tables, offsets, cols, rows, pos = [], [], [], [], 0
