@@ -6,7 +6,8 @@ a fixed pseudo-random policy, timed after a short warm-up. Reported: policy
 steps per second on one core, the real-time factor (simulated over wall
 seconds), the peak RSS of the process (its own: ``VmHWM``, see :func:`peak_rss_mb`) with
 what of its resident memory at the end is private (anonymous) and what is mapped library
-files (shared by every process that maps them), and a breakdown of the wall time per
+files (shared by every process that maps them), how many kernels it had to compile (a cold
+numba cache: the peak then includes the compiler's), and a breakdown of the wall time per
 simulated second:
 
     physics   ``Simulation.step``: pymunk, encoders, dead reckoning
@@ -130,9 +131,23 @@ def resident_mb() -> dict[str, float]:
     return out
 
 
+def kernels_compiled() -> int:
+    """How many compiled kernels this process compiled rather than loaded from numba's cache
+    (a fresh clone compiles them in its first process: several hundred MB more at the peak)."""
+    import gc
+    import sys
+
+    if "numba" not in sys.modules:
+        return 0
+    from numba.core.dispatcher import Dispatcher
+
+    return sum(sum(d.stats.cache_misses.values()) for d in gc.get_objects() if isinstance(d, Dispatcher))
+
+
 def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:
     result = measure(env_id, kwargs, steps)
-    queue.put({**result, "peak_rss_mb": peak_rss_mb(), "rss_end_mb": resident_mb()})
+    queue.put({**result, "peak_rss_mb": peak_rss_mb(), "rss_end_mb": resident_mb(),
+               "kernels_compiled": kernels_compiled()})
 
 
 def run(args) -> dict:
@@ -171,6 +186,10 @@ def format_table(result: dict) -> str:
                      f"{r['steps_per_second']:10.1f}{r['real_time_factor']:13.1f}{r['peak_rss_mb']:15.0f}")
     for name in result.get("skipped", ()):
         lines.append(f"{name:8}  skipped: the source draws no frames")
+    for name, r in result["configs"].items():
+        if r.get("kernels_compiled"):
+            lines.append(f"{name:8}  compiled {r['kernels_compiled']} kernels (numba's cache was cold): its peak RSS "
+                         "includes the compiler's; run again")
     if result["configs"]:
         lines += ["", "where the wall time goes: ms per simulated second (% of wall)",
                   f"{'config':8}" + "".join(f"{p:>16}" for p in (*PARTS, "total"))]

@@ -10,6 +10,7 @@ from agvsim.bench.env import (
     FLOOR_PEAK_RSS_MB,
     PARTS,
     format_table,
+    kernels_compiled,
     measure,
     peak_rss_mb,
 )
@@ -46,8 +47,25 @@ def test_the_table_shows_the_breakdown(result):
                           "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB})
     assert "geometric" in table and "skipped" in table
     assert "floor: peak RSS <= 300 MB per env process" in table and "state 60 + 40" in table
+    assert "compiled" not in table
+    cold = format_table({"env_id": "x", "skipped": [], "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB,
+                         "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 900.0,
+                                               "kernels_compiled": 12}}})
+    assert "compiled 12 kernels" in cold
     for part in (*PARTS, "total"):
         assert part in table
+
+
+def test_kernels_compiled_counts_this_processs_compilations():
+    numba = pytest.importorskip("numba")
+    before = kernels_compiled()
+
+    @numba.njit  # no cache: compiled at its first call
+    def twice(x):
+        return 2.0 * x
+
+    assert twice(1.5) == 3.0
+    assert kernels_compiled() == before + 1
 
 
 def test_observations_choices_are_the_registry(capsys):
