@@ -1,10 +1,6 @@
 """One update path: the main filter and the re-localization hypotheses both go through filterpy's
 EKF update, and the NIS is read from filterpy's innovation and its covariance.
 
-:class:`~localizer.filter.update.PoseKF` is filterpy 2.0's ``ExtendedKalmanFilter`` written out (so
-that an env process does not import ``filterpy.kalman`` and ``scipy.stats``); it is held here
-against filterpy's own class, attribute by attribute and bit for bit.
-
 The by-hand references below are plain filterpy ``ExtendedKalmanFilter`` objects fed the same
 numbers; equality is exact (a hand-written update, e.g. ``S = (H P) Hᵀ + R`` instead of
 filterpy's ``H (P Hᵀ) + R``, differs in the last bits for some of these cases).
@@ -19,10 +15,9 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 import localizer.numeric
 from localizer.filter import (ACCEPTED, FilterConfig, GateConfig, Hypothesis, Measurement, OdometryAccumulator,
-                              OdometryNoise, PoseEKF, PoseKF, RelocalizeConfig, Relocalizer, ViewLimits, associate,
-                              compose, compose_jacobians, innovation, measurement_jacobian, predict_all,
+                              OdometryNoise, PoseEKF, RelocalizeConfig, Relocalizer, ViewLimits, associate, compose,
+                              compose_jacobians, innovation, measurement_jacobian, predict_all,
                               predict_measurement)
-from localizer.filter.association import gate_threshold
 from tests.filter.conftest import LIMITS, MOUNT, corridor_targets
 
 GATE = GateConfig(view=LIMITS)
@@ -112,60 +107,6 @@ def test_hypothesis_predict_is_the_main_filters_predict():
     wrapped = h.x.copy()
     wrapped[2] = localizer.numeric.wrap_angle(float(wrapped[2]))
     assert np.array_equal(wrapped, ekf.x) and np.array_equal(h.P, ekf.P)
-
-
-class FilterpyPoseKF(ExtendedKalmanFilter):
-    """filterpy's own class with PoseKF's prediction (the composition), the reference."""
-
-    def __init__(self, x, P) -> None:
-        super().__init__(dim_x=3, dim_z=3)
-        self.x = np.asarray(x, dtype=float).reshape(3, 1).copy()
-        self.P = np.asarray(P, dtype=float).copy()
-
-    def predict_x(self, u=0):
-        self.x = compose(self.x, u).reshape(3, 1)
-
-
-STATE = ("x", "P", "F", "Q", "R", "B", "y", "S", "SI", "K", "x_prior", "P_prior", "x_post", "P_post", "dim_x", "dim_z",
-         "dim_u")
-
-
-def _same_state(ours, ref) -> None:
-    for name in STATE:
-        a, b = getattr(ours, name), getattr(ref, name)
-        assert np.shape(a) == np.shape(b) and np.array_equal(a, b), name
-    assert np.array_equal(ours.z, ref.z) or (ours.z.shape == ref.z.shape and all(v is None for v in ours.z.ravel())
-                                             and all(v is None for v in ref.z.ravel()))
-
-
-@pytest.mark.parametrize("k", CASES)
-def test_posekf_is_filterpys_ekf_step_for_step(k):
-    targets, j, x, P, m = case(k)
-    ours, ref = PoseKF(x, P), FilterpyPoseKF(x, P)
-    _same_state(ours, ref)
-    F, G = compose_jacobians(x, np.array([0.3, 0.01, 0.02]))
-    for kf in (ours, ref):
-        kf.F, kf.Q = F, G @ np.diag([1e-4, 1e-4, 1e-5]) @ G.T
-        kf.predict(u=np.array([0.3, 0.01, 0.02]))
-    _same_state(ours, ref)
-    pos, yaw = targets.positions[j], float(targets.yaws[j])
-    for kf in (ours, ref):
-        kf.update(m.z.reshape(3, 1), lambda s: measurement_jacobian(s, pos, yaw, MOUNT),
-                  lambda s: predict_measurement(s, pos, yaw, MOUNT).reshape(3, 1), R=m.R, residual=innovation)
-    _same_state(ours, ref)
-    assert ours.mahalanobis == ref.mahalanobis
-    assert ours.log_likelihood == ref.log_likelihood and ours.likelihood == ref.likelihood
-    for kf in (ours, ref):
-        kf.update(None, None, None)
-    _same_state(ours, ref)
-
-
-def test_the_gate_is_scipys_chi2_quantile_to_the_bit():
-    from scipy.stats import chi2
-
-    for dof in (1, 2, 3, 5):
-        for p in (1e-6, 0.1, 0.5, 0.9, 0.95, 0.99, 0.999, 0.9999, 1.0 - 1e-9):
-            assert gate_threshold(p, dof) == float(chi2.ppf(p, dof)), (p, dof)
 
 
 def test_one_wrap_angle():
