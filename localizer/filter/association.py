@@ -21,6 +21,7 @@ from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
+from scipy.stats import chi2
 
 from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, predict_all)
@@ -40,13 +41,9 @@ STATUSES = (ACCEPTED, GATED, AMBIGUOUS, NO_CANDIDATE, DUPLICATE)
 
 @lru_cache(maxsize=None)
 def gate_threshold(probability: float, dof: int = 3) -> float:
-    """The χ²(``dof``) quantile of ``probability`` (0 < p < 1): the gate on D² (computed once per
-    pair). ``scipy.stats.chi2.ppf``'s own formula, ``2 P⁻¹(dof / 2, p)`` with the regularised
-    lower incomplete gamma function of ``scipy.special`` (the same number to the last bit, without
-    importing ``scipy.stats``: about 40 MB of each env process, issue 12)."""
-    from scipy.special import gammaincinv
-
-    return float(2 * gammaincinv(dof / 2, probability))
+    """The χ²(``dof``) quantile of ``probability``: the gate on D² (computed once per pair;
+    ``scipy.stats.chi2.ppf`` costs about 0.1 ms a call)."""
+    return float(chi2.ppf(probability, dof))
 
 
 @dataclass(frozen=True)
