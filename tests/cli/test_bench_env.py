@@ -1,11 +1,19 @@
-"""``agvsim bench env``: the breakdown of the wall time adds up (a short geometric run, in process)."""
+"""``agvsim bench env``: the breakdown of the wall time adds up (a short geometric run, in process);
+the peak RSS is the env process's own; the floor is stated from one place."""
 from __future__ import annotations
 
 import math
 
 import pytest
 
-from agvsim.bench.env import PARTS, format_table, measure
+from agvsim.bench.env import (
+    FLOOR_PEAK_RSS_MB,
+    PARTS,
+    format_table,
+    kernels_compiled,
+    measure,
+    peak_rss_mb,
+)
 
 
 @pytest.fixture(scope="module")
@@ -34,11 +42,30 @@ def test_the_breakdown_parts_are_non_negative_and_sum_to_the_total(result):
 
 def test_the_table_shows_the_breakdown(result):
     table = format_table({"env_id": "agvsim/PlantFloor-v0", "machine": {"cpu_model": "test"}, "skipped": ["image"],
-                          "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 100.0}},
-                          "floor_peak_rss_mb_with_images": 500.0})
+                          "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 100.0,
+                                                "rss_end_mb": {"anon": 60.0, "file": 40.0}}},
+                          "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB})
     assert "geometric" in table and "skipped" in table
+    assert "floor: peak RSS <= 300 MB per env process" in table and "state 60 + 40" in table
+    assert "compiled" not in table
+    cold = format_table({"env_id": "x", "skipped": [], "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB,
+                         "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 900.0,
+                                               "kernels_compiled": 12}}})
+    assert "compiled 12 kernels" in cold
     for part in (*PARTS, "total"):
         assert part in table
+
+
+def test_kernels_compiled_counts_this_processs_compilations():
+    numba = pytest.importorskip("numba")
+    before = kernels_compiled()
+
+    @numba.njit  # no cache: compiled at its first call
+    def twice(x):
+        return 2.0 * x
+
+    assert twice(1.5) == 3.0
+    assert kernels_compiled() == before + 1
 
 
 def test_observations_choices_are_the_registry(capsys):
@@ -49,3 +76,31 @@ def test_observations_choices_are_the_registry(capsys):
         main(["bench", "env", "--observations", "nonsense"])
     err = capsys.readouterr().err
     assert all(name in err for name in SOURCES)
+
+
+def test_a_spawned_child_reports_its_own_peak_not_its_parents():
+    """``ru_maxrss`` of a spawned child includes its parent's peak on Linux; ``peak_rss_mb`` does not."""
+    import multiprocessing as mp
+    import sys
+
+    import numpy as np
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("VmHWM is Linux's")
+    big = np.ones(200 * 2 ** 20 // 8)  # 200 MB resident in the parent
+    assert peak_rss_mb() > 200.0
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=_child_peak, args=(queue,))
+    proc.start()
+    own, inherited = queue.get(timeout=120)
+    proc.join()
+    del big
+    assert inherited > 200.0  # what the bench used to report for an idle child
+    assert own < 100.0  # an interpreter, numpy, pytest and this module: about 30 MB
+
+
+def _child_peak(queue) -> None:
+    import resource
+
+    queue.put((peak_rss_mb(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0))

@@ -91,3 +91,14 @@ def test_importing_packages_opens_no_gl():
             "bad = [m for m in sys.modules if m.split('.')[0] in ('pyrender', 'OpenGL')]; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_importing_the_env_and_filter_stack_imports_no_gl_or_opencv():
+    """What an env process imports (issue 12: memory per env process); the run itself is
+    ``tests/envs/test_env_process.py``."""
+    code = ("import sys, envs, localizer, localizer.filter, agvsim.sensors.rendered, agvsim.sensors.render.renderer, "
+            "agvsim.sensors.render.raycast, agvsim.sensors.render.textures; "
+            "bad = sorted({m for m in sys.modules if m.split('.')[0] in ('pyrender', 'OpenGL', 'trimesh', 'cv2', "
+            "'matplotlib', 'pandas', 'ray')}); "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -30,6 +30,7 @@ AMBIENT = 0.6  # fraction of normal illumination on a wall that comes from every
 LAMP_SPACING = 6.0  # m between ceiling lamps
 MAX_LAMP_HEIGHT = 6.0  # m
 RASTER_RES = 0.1  # m per cell of the lighting-zone raster
+RASTER_BLOCK_ROWS = 32  # raster rows computed at a time (each cell on its own: the same raster)
 
 
 def lighting_level(value) -> float | None:
@@ -90,12 +91,14 @@ class Illumination:
         res = RASTER_RES
         xs = np.arange(xmin - 1.0, xmax + 1.0 + res, res)
         ys = np.arange(ymin - 1.0, ymax + 1.0 + res, res)
-        gx, gy = np.meshgrid(xs, ys)
-        pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
-        level = np.full(len(pts), float(world_map.lighting_default))
-        for zone in world_map.lighting_zones:  # the last zone wins, as Map.lighting_at
-            level[geo.points_in_polygon(pts, zone.polygon)] = zone.level
-        raster = level.reshape(gy.shape).astype(np.float32)
+        raster = np.empty((len(ys), len(xs)), np.float32)
+        for r0 in range(0, len(ys), RASTER_BLOCK_ROWS):  # in blocks of rows: the tests' temporaries stay small
+            gx, gy = np.meshgrid(xs, ys[r0:r0 + RASTER_BLOCK_ROWS])
+            pts = np.stack([gx.ravel(), gy.ravel()], axis=1)
+            level = np.full(len(pts), float(world_map.lighting_default))
+            for zone in world_map.lighting_zones:  # the last zone wins, as Map.lighting_at
+                level[geo.points_in_polygon(pts, zone.polygon)] = zone.level
+            raster[r0:r0 + RASTER_BLOCK_ROWS] = level.reshape(gy.shape)
         tmp = cls(ambient, origin, spacing, lamp_h, 1.0, raster, np.array([xs[0], ys[0]]), res)
         # normalise: a vertical surface at 1.2 m gets at most 1.0 (ambient included), wherever
         # it stands in a lamp cell and whichever way it faces

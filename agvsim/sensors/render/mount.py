@@ -17,7 +17,7 @@ import numpy as np
 
 from localizer.mount import CameraMount, check_pose
 
-__all__ = ["CameraMount", "CameraPose", "check_pose", "jitter_rotation", "level_rotation"]
+__all__ = ["CameraMount", "CameraPose", "check_pose", "jitter_rotation", "level_rotation", "rotation_from_vector"]
 
 
 def level_rotation(heading: float) -> np.ndarray:
@@ -40,6 +40,24 @@ def jitter_rotation(pitch: float, roll: float) -> np.ndarray:
     rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
     rz = np.array([[cr, -sr, 0.0], [sr, cr, 0.0], [0.0, 0.0, 1.0]])
     return rx @ rz
+
+
+def rotation_from_vector(rvec) -> np.ndarray:
+    """``(3, 3)`` rotation of the rotation vector ``rvec`` (axis x angle, rad): Rodrigues' formula
+    ``cos θ I + (1 - cos θ) r rᵀ + sin θ [r]ₓ`` with ``r`` the unit axis, identity below
+    ``DBL_EPSILON``. OpenCV's ``cv2.Rodrigues`` to the last bit (the same operations in the same
+    order; tested), without importing OpenCV into a process that needs nothing else of it."""
+    x, y, z = (float(v) for v in np.ravel(rvec))
+    theta = math.sqrt(x * x + y * y + z * z)
+    if theta < 2.220446049250313e-16:
+        return np.eye(3)
+    c, s = math.cos(theta), math.sin(theta)
+    c1 = 1.0 - c
+    inv = 1.0 / theta
+    x, y, z = x * inv, y * inv, z * inv
+    rrt = np.array([[x * x, x * y, x * z], [x * y, y * y, y * z], [x * z, y * z, z * z]])
+    r_x = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return c * np.eye(3) + c1 * rrt + s * r_x
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ centre, drawn as the homography of a level frame rendered a little larger
 """
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -23,7 +24,7 @@ from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
 from localizer.camera import Camera
 
-__all__ = ["NEAR", "SUBCOLUMNS", "RaycastBackend"]
+__all__ = ["FLOOR_KEY", "NEAR", "SUBCOLUMNS", "RaycastBackend"]
 
 NEAR = 0.05  # m, as the pyrender backend's near plane
 SUBCOLUMNS = 4  # sub-column rays of a column that a silhouette crosses
@@ -58,6 +59,9 @@ class RaycastBackend:
         x0, y0, x1, y1 = scene.floor
         self.floor = Floor(float(x0), float(y0), float(x1), float(y1), keys[floor_key], float(tw), float(th),
                            float(scene.background))
+        #: the scene's texture key of each texture index of the kernels' records (the floor's
+        #: entry is FLOOR_KEY, its scene texture "surface:floor")
+        self.texture_keys = tuple(sorted(keys, key=keys.get))
         self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals}, floor_key)
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
@@ -206,22 +210,40 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
     """The textures in ``keys``: summed-area tables (float64, rows from the bottom: ``v`` up) of
     the decals' (they are integrated exactly), mip levels of the surfaces' (sampled as the
     reference samples them: the floor's stored row by row, the faces' column by column); each
-    texture gets only what the kernels read of it."""
+    texture gets only what the kernels read of it.
+
+    A decal's table is of its texels at their information content (:func:`_coarsest_texels`: a
+    target's bars and margins are blocks of 128 x 128 equal texels, integrated the same over
+    one); decals with the same texels share one table (a map's hazard signs are all alike);
+    each table is summed in place, so building holds no temporaries of its size."""
     tiled = {p.texture: p.tiled for p in scene.parts}
     order = sorted(keys, key=keys.get)
     images = {k: scene.textures[k.split(":", 1)[1] if k == floor_key else k] for k in order}
-    sizes = [(images[k].shape[0] + 1) * (images[k].shape[1] + 1) if k in decal_keys else 0 for k in order]
-    offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    sat = np.zeros(max(int(sum(sizes)), 1), np.float64)
-    width, height = [], []
-    for k, off in zip(order, offset):
-        h, w = images[k].shape
-        width.append(w)
-        height.append(h)
-        if k in decal_keys:
-            t = np.asarray(images[k], np.float64)[::-1]  # row 0 at v = 0
-            table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
-            table[1:, 1:] = t.cumsum(axis=0).cumsum(axis=1)
+    tables: dict[tuple, int] = {}  # (shape, digest of the texels) -> offset of their table
+    offset = np.zeros(len(order), np.int64)
+    width, height, unique = [], [], []
+    size = 0
+    for k, key in enumerate(order):
+        tex = np.ascontiguousarray(images[key])
+        if key in decal_keys:
+            tex = _coarsest_texels(tex)
+        height.append(tex.shape[0])
+        width.append(tex.shape[1])
+        if key not in decal_keys:
+            continue
+        same = (tex.shape, tex.dtype.str, hashlib.sha256(tex).digest())
+        if same not in tables:
+            tables[same] = size
+            unique.append((size, tex))
+            size += (tex.shape[0] + 1) * (tex.shape[1] + 1)
+        offset[k] = tables[same]
+    sat = np.zeros(max(size, 1), np.float64)
+    for off, tex in unique:
+        h, w = tex.shape
+        table = sat[off:off + (h + 1) * (w + 1)].reshape(h + 1, w + 1)[1:, 1:]
+        table[...] = tex[::-1]  # row 0 at v = 0
+        np.cumsum(table, axis=0, out=table)
+        np.cumsum(table, axis=1, out=table)
     levels = [_mip_levels(np.asarray(images[k], np.float32)[::-1], tiled.get(k, True))
               if k not in decal_keys else [np.zeros((1, 1), np.float32)] for k in order]
     column_major = [k != floor_key for k in order]  # the faces' are read a texel column at a time
@@ -236,22 +258,49 @@ def _summed_area_tables(scene: SceneDescription, keys: dict[str, int], decal_key
             mip_h[k, lvl], mip_w[k, lvl] = img.shape
             chunks.append(img.T.ravel() if column_major[k] else img.ravel())
             pos += img.size
+    mip = np.concatenate(chunks).astype(np.float32, copy=False)
     return Textures(sat, offset, np.asarray(width, np.int64), np.asarray(height, np.int64),
-                    np.asarray([tiled.get(k, True) for k in order], np.bool_), np.concatenate(chunks).astype(np.float32),
+                    np.asarray([tiled.get(k, True) for k in order], np.bool_), mip,
                     mip_offset, mip_w, mip_h, np.asarray([len(lv) for lv in levels], np.int64),
                     np.asarray(column_major, np.bool_))
 
 
+def _coarsest_texels(tex: np.ndarray) -> np.ndarray:
+    """``tex`` on the coarsest texel grid on which it is the same piecewise-constant picture: each
+    texel of the result is a ``fy x fx`` block of equal texels of ``tex``, ``fx`` the greatest
+    common divisor of the width and of every column where the texels change (``fy`` likewise
+    for rows). Its integral over any box is the same function of the box as ``tex``'s."""
+    h, w = tex.shape
+    cols = np.flatnonzero(np.any(tex[:, 1:] != tex[:, :-1], axis=0)) + 1
+    rows = np.flatnonzero(np.any(tex[1:] != tex[:-1], axis=1)) + 1
+    fx = math.gcd(w, *cols.tolist())
+    fy = math.gcd(h, *rows.tolist())
+    return np.ascontiguousarray(tex[::fy, ::fx])
+
+
 def _mip_levels(img: np.ndarray, tiled: bool) -> list[np.ndarray]:
     """Box-filtered levels of ``img`` down to one texel (each half the size, rounded up)."""
-    import cv2
-
     out = [np.ascontiguousarray(img, np.float32)]
     while out[-1].shape[0] > 1 or out[-1].shape[1] > 1:
-        prev = out[-1]
-        h, w = prev.shape
-        out.append(cv2.resize(prev, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA))
+        out.append(_half_size(out[-1]))
     return out
+
+
+def _half_size(img: np.ndarray) -> np.ndarray:
+    """``img`` (float32) at half its size, each texel the mean of the 2 x 2 (or 2, along a side of
+    one texel) texels it covers, ``((a + b) + (c + d)) / 4`` in float32 (OpenCV's ``INTER_AREA``
+    for a factor of two; it sums the last columns of a row in another order). An odd side goes
+    to OpenCV's area resampling, which rounds it up."""
+    h, w = img.shape
+    if (h > 1 and h % 2) or (w > 1 and w % 2):
+        import cv2
+
+        return cv2.resize(img, (max(1, (w + 1) // 2), max(1, (h + 1) // 2)), interpolation=cv2.INTER_AREA)
+    if w > 1:
+        img = img[:, 0::2] + img[:, 1::2]
+    if h > 1:
+        img = img[0::2] + img[1::2]
+    return img * np.float32(0.25 if h > 1 and w > 1 else 0.5)
 
 
 def _top_albedo(scene: SceneDescription, keys: dict[str, int]) -> np.ndarray:
@@ -282,10 +331,11 @@ def _light(ill: Illumination, faces: Faces) -> Light:
     rows, cols = ill.zone_raster.shape
     xs = ill.raster_origin[0] + np.arange(cols) * ill.raster_res
     ys = ill.raster_origin[1] + np.arange(rows) * ill.raster_res
-    gx, gy = np.meshgrid(xs, ys)
-    pts = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
-    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
-    floor_irr = ill.irradiance(pts, up).astype(np.float32)
+    floor_irr = np.empty((rows, cols), np.float32)
+    for r0 in range(0, rows, 32):  # in blocks of rows (each cell on its own): small temporaries
+        gx, gy = np.meshgrid(xs, ys[r0:r0 + 32])
+        pts = np.stack([gx, gy, np.zeros_like(gx)], axis=-1)
+        floor_irr[r0:r0 + 32] = ill.irradiance(pts, np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape))
     zone = np.ascontiguousarray(ill.zone_raster, np.float32)
     res = FACE_LIGHT_RES
     tables, offsets, cols, rows, pos = [], [], [], [], 0

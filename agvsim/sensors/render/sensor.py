@@ -22,6 +22,7 @@ import numpy as np
 from localizer.numeric import check_number
 
 from localizer.camera import Camera
+from agvsim.sensors.render.mount import rotation_from_vector
 
 
 def _nonneg(owner: str, name: str, value) -> float:
@@ -66,8 +67,6 @@ def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
         z_min: the smallest positive depth (m) if the caller has it (1e3 if none), else taken
             from ``depth``.
     """
-    import cv2
-
     v, w = (np.asarray(a, float) for a in twist_cam)
     h, wd = radiance.shape
     if z_min is None:
@@ -80,7 +79,7 @@ def exposure_motion(camera: Camera, radiance: np.ndarray, depth: np.ndarray,
     ends = []
     for t in (-0.5, 0.5):
         dt = t * exposure_time
-        ends.append(cv2.Rodrigues(np.asarray(w * dt, float).reshape(3, 1))[0])
+        ends.append(rotation_from_vector(w * dt))
         ends.append(v * dt)
     return ends[0], ends[1], ends[2], ends[3], n
 

@@ -78,11 +78,38 @@ def target_texture(spec: TargetSpec, polarity: str, texels_per_bar: int = TARGET
 # ------------------------------------------------------------------ surfaces
 def _noise(rng: np.random.Generator, shape: tuple[int, int], scale: int, amp: float) -> np.ndarray:
     """Smooth value noise: ``amp``-sigma Gaussian field with features ``scale`` texels wide (tileable)."""
-    import cv2
-
     small = rng.normal(0.0, 1.0, (max(2, shape[0] // scale), max(2, shape[1] // scale))).astype(np.float32)
-    big = cv2.resize(small, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
-    return big * np.float32(amp)
+    return cubic_resize(small, shape) * np.float32(amp)
+
+
+def _cubic_taps(n_in: int, n_out: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source indices ``(n_out, 4)`` (edges repeated) and float32 weights of the bicubic taps."""
+    pos = ((np.arange(n_out) + 0.5) * (1.0 / (n_out / n_in)) - 0.5).astype(np.float32)
+    first = np.floor(pos)
+    x = pos - first  # float32
+    a, one = np.float32(-0.75), np.float32(1.0)
+    w0 = ((a * (x + one) - np.float32(5.0) * a) * (x + one) + np.float32(8.0) * a) * (x + one) - np.float32(4.0) * a
+    w1 = ((a + np.float32(2.0)) * x - (a + np.float32(3.0))) * x * x + one
+    w2 = ((a + np.float32(2.0)) * (one - x) - (a + np.float32(3.0))) * (one - x) * (one - x) + one
+    w3 = one - w0 - w1 - w2
+    taps = np.clip(first.astype(np.int64)[:, None] + np.arange(-1, 3), 0, n_in - 1)
+    return taps, np.stack([w0, w1, w2, w3], axis=1)
+
+
+def cubic_resize(img: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``(H, W)`` float32 ``img`` resampled to ``shape`` = ``(h, w)``: separable bicubic
+    convolution (Keys, a = -0.75), pixel centres aligned, edge texels repeated, in float32,
+    each tap's product added left to right. The weights and taps are OpenCV's ``INTER_CUBIC``;
+    OpenCV's own sums differ from it in the last bit (their order depends on the CPU's kernels),
+    this one does not."""
+    img = np.asarray(img, np.float32)
+    cols, wc = _cubic_taps(img.shape[1], shape[1])
+    rows, wr = _cubic_taps(img.shape[0], shape[0])
+    g = img[:, cols]
+    across = ((g[..., 0] * wc[:, 0] + g[..., 1] * wc[:, 1]) + g[..., 2] * wc[:, 2]) + g[..., 3] * wc[:, 3]
+    g = across[rows]  # (h, 4, w)
+    wr = wr[:, :, None]
+    return ((g[:, 0] * wr[:, 0] + g[:, 1] * wr[:, 1]) + g[:, 2] * wr[:, 2]) + g[:, 3] * wr[:, 3]
 
 
 #: Surface name -> (tile width m, tile height m) for tiled wall/floor textures.
