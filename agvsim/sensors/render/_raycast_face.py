@@ -266,6 +266,13 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
 
 
 @inline
+def _lerp_at(buf, p):
+    """``buf`` interpolated linearly at ``p >= 0`` (unsigned indices: no wrap-around test per load)."""
+    q = np.uint64(p)
+    return buf[q] + (buf[q + np.uint64(1)] - buf[q]) * (p - math.floor(p))
+
+
+@inline
 def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n_l, acc):
     """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: the two
     subsamples of each level (weights ``w0``, ``w1``, gain included) times the irradiance.
@@ -277,7 +284,6 @@ def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n
         return
     d0 = 0.25 * t0b
     d1 = 0.25 * t1b
-    one = np.uint64(1)
     m0 = min(max(int((lo - y0) / step), 0), n_l - 2)
     m1 = min(max(int((hi - y0) / step), 0), n_l - 2)
     for m in range(m0, m1 + 1):
@@ -289,17 +295,6 @@ def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n
             e = base + (i - a) * slope
             c0 = t0a + t0b * i
             c1 = t1a + t1b * i
-            # p >= 0: unsigned indices (no wrap-around test per load)
-            p = c0 - d0
-            q = np.uint64(p)
-            s0 = buf0[q] + (buf0[q + one] - buf0[q]) * (p - math.floor(p))
-            p = c0 + d0
-            q = np.uint64(p)
-            s0 += buf0[q] + (buf0[q + one] - buf0[q]) * (p - math.floor(p))
-            p = c1 - d1
-            q = np.uint64(p)
-            s1 = buf1[q] + (buf1[q + one] - buf1[q]) * (p - math.floor(p))
-            p = c1 + d1
-            q = np.uint64(p)
-            s1 += buf1[q] + (buf1[q + one] - buf1[q]) * (p - math.floor(p))
+            s0 = _lerp_at(buf0, c0 - d0) + _lerp_at(buf0, c0 + d0)
+            s1 = _lerp_at(buf1, c1 - d1) + _lerp_at(buf1, c1 + d1)
             acc[i] += (w0 * s0 + w1 * s1) * e

@@ -18,11 +18,23 @@ import math
 
 import numpy as np
 
+from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["FAR", "floor_rows"]
+__all__ = ["FAR", "floor_level", "floor_rows"]
 
 FAR = 1.0e4  # m, depth of the horizon (flat spans that run to infinity end there)
+
+
+@inline
+def floor_level(tex, fk, foot):
+    """The mip level of the floor texture ``fk`` for a footprint of ``foot`` level-0 texels:
+    the first whose texels the footprint covers fewer than two of (the last if none)."""
+    lv = 0
+    while foot >= 2.0 and lv < tex.mip_levels[fk] - 1:
+        foot *= 0.5
+        lv += 1
+    return lv
 
 
 @jit
@@ -78,11 +90,7 @@ def floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth):
         zm = k / (i - cy) if i - cy > horizon else FAR
         za = k / (i + 0.5 - cy) if i + 0.5 - cy > horizon else FAR
         zb = k / (i - 0.5 - cy) if i - 0.5 - cy > horizon else FAR
-        foot = max(zb - za, zm / view.fx) * inv_tw * tex_w
-        lv = 0
-        while foot >= 2.0 and lv < tex.mip_levels[fk] - 1:
-            foot *= 0.5
-            lv += 1
+        lv = floor_level(tex, fk, max(zb - za, zm / view.fx) * inv_tw * tex_w)
         mw = tex.mip_width[fk, lv]
         mh = tex.mip_height[fk, lv]
         moff = np.uint64(tex.mip_offset[fk, lv])

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from agvsim.sensors.render._raycast_face import shade_face
-from agvsim.sensors.render._raycast_floor import floor_rows
+from agvsim.sensors.render._raycast_floor import floor_level, floor_rows
 from agvsim.sensors.render._raycast_kernels import (MAX_HITS, MAX_SPANS, bin_solids, cast_ray, lamp_irradiance,
                                                     raster_lookup, same_spans)
 from localizer._jit import fast_inline as inline
@@ -74,11 +74,7 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
         if sid < 0:  # the floor, sampled at the footprint's scale
             za = k / (yb - cy) if yb - cy > k / _FAR else _FAR
             zb = k / (ya - cy) if ya - cy > k / _FAR else _FAR
-            foot = max(zb - za, zm * span_x) * inv_tw * tex_w
-            lv = 0
-            while foot >= 2.0 and lv < tex.mip_levels[fk] - 1:
-                foot *= 0.5
-                lv += 1
+            lv = floor_level(tex, fk, max(zb - za, zm * span_x) * inv_tw * tex_w)
             mw = tex.mip_width[fk, lv]
             mh = tex.mip_height[fk, lv]
             moff = tex.mip_offset[fk, lv]
