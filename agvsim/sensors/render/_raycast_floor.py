@@ -68,7 +68,7 @@ def floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth):
     rows_r, cols_r = irr_raster.shape
     irr_flat = irr_raster.ravel()
     ucols = np.uint64(cols_r)
-    cmax = cols_r - 1.0  # the raster is at least 2 x 2 (Illumination)
+    cmax = cols_r - 1.0  # the raster is at least 2 x 2 (RaycastBackend pads a thinner one)
     rmax = rows_r - 1.0
     one = np.uint64(1)
     zero = np.uint64(0)
