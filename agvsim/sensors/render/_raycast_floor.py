@@ -38,7 +38,7 @@ def floor_level(tex, fk, foot):
 
 
 @jit
-def floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth):
+def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, floor_depth):
     """Draw the floor into ``radiance_t`` where ``drawn_t`` says a column shows it.
 
     Args:
@@ -46,12 +46,13 @@ def floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth):
         tex, light, floor: the scene's :class:`Textures`, :class:`Light`, :class:`Floor`.
         drawn_t: ``(W, H)`` uint8: the pixels to draw (image transposed), 1 where some column
             shows the floor over a whole pixel.
+        row_lo, row_hi: ``(H,)`` int64: the first and last column ``drawn_t`` marks in each row
+            (none if ``row_hi < row_lo``).
         radiance_t: ``(W, H)`` float32 (the image transposed), out: the floor's radiance
             (relative) at those pixels (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
     """
-    w = view.width
     h = view.height
     cy = view.cy
     k = view.fy * view.cam_z
@@ -79,12 +80,8 @@ def floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth):
     base_x = view.fwd_x - view.cx * x_step_x  # direction of column 0's ray
     base_y = view.fwd_y - view.cx * x_step_y
     for i in range(h):
-        j_lo = w
-        j_hi = -1
-        for j in range(w):
-            if drawn_t[j, i]:
-                j_lo = min(j_lo, j)
-                j_hi = j
+        j_lo = row_lo[i]
+        j_hi = row_hi[i]
         if j_hi < j_lo:
             continue
         zm = k / (i - cy) if i - cy > horizon else FAR

@@ -212,6 +212,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                           e_y0[o:], e_y1[o:], e_kind[o:], e_id[o:], e_val[o:])
     # the rows of each column where some edge ray sees the floor whole: the floor pass draws them
     drawn_t = np.zeros((w, h), np.uint8)
+    row_lo = np.full(h, w, np.int64)  # the first and last column to draw in each row
+    row_hi = np.full(h, -1, np.int64)
     for j in range(w):
         col = drawn_t[j]
         for r in (j, j + 1):
@@ -221,8 +223,11 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                     lo = max(int(math.ceil(e_y0[o + k] + 0.5)), 0)
                     hi = min(int(math.floor(e_y1[o + k] - 0.5)), h - 1)
                     col[lo:hi + 1] = 1
+                    for i in range(lo, hi + 1):
+                        row_lo[i] = min(row_lo[i], j)
+                        row_hi[i] = max(row_hi[i], j)
     floor_depth = np.empty(h, np.float32)
-    floor_rows(view, tex, light, floor, drawn_t, radiance_t, floor_depth)
+    floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, floor_depth)
     my0 = np.empty(MAX_SPANS)
     my1 = np.empty(MAX_SPANS)
     mkind = np.empty(MAX_SPANS, np.int64)
