@@ -18,12 +18,11 @@ import math
 
 import numpy as np
 
+from agvsim.sensors.render._raycast_kernels import FAR
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["FAR", "floor_level", "floor_rows"]
-
-FAR = 1.0e4  # m, depth of the horizon (flat spans that run to infinity end there)
+__all__ = ["floor_level", "floor_rows"]
 
 
 @inline

@@ -19,7 +19,7 @@ import numpy as np
 
 from agvsim.sensors.render._raycast_face import shade_face
 from agvsim.sensors.render._raycast_floor import floor_level, floor_rows
-from agvsim.sensors.render._raycast_kernels import (MAX_HITS, MAX_SPANS, bin_solids, cast_ray, lamp_irradiance,
+from agvsim.sensors.render._raycast_kernels import (FAR, MAX_HITS, MAX_SPANS, bin_solids, cast_ray, lamp_irradiance,
                                                     raster_lookup, same_spans)
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
@@ -27,7 +27,6 @@ from localizer._jit import fast_jit as jit
 __all__ = ["render_view", "shade_column"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2
-_FAR = 1.0e4  # m
 
 
 @inline
@@ -68,12 +67,12 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
         if cov <= 0.0:
             continue
         ym = 0.5 * (ya + yb)
-        zm = k / (ym - cy) if ym - cy > k / _FAR else _FAR
+        zm = k / (ym - cy) if ym - cy > k / FAR else FAR
         px = view.cam_x + zm * dx
         py = view.cam_y + zm * dy
         if sid < 0:  # the floor, sampled at the footprint's scale
-            za = k / (yb - cy) if yb - cy > k / _FAR else _FAR
-            zb = k / (ya - cy) if ya - cy > k / _FAR else _FAR
+            za = k / (yb - cy) if yb - cy > k / FAR else FAR
+            zb = k / (ya - cy) if ya - cy > k / FAR else FAR
             lv = floor_level(tex, fk, max(zb - za, zm * span_x) * inv_tw * tex_w)
             mw = tex.mip_width[fk, lv]
             mh = tex.mip_height[fk, lv]
@@ -98,7 +97,7 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
                 irr *= raster_lookup(light, light.zone, px, py)
         acc[i] += gain * cov * alb * irr
         if write_depth and ya <= i < yb:
-            zi = k / (i - cy) if i - cy > k / _FAR else 0.0
+            zi = k / (i - cy) if i - cy > k / FAR else 0.0
             depth[i] = zi
 
 

@@ -33,13 +33,13 @@ import numpy as np
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "cast_ray", "decal_cover", "lamp_irradiance",
+__all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "cast_ray", "decal_cover", "lamp_irradiance",
            "raster_lookup", "same_spans"]
 
 MAX_SPANS = 96  # spans per ray (a column crossing every rack of a plant sees ~20)
 MAX_HITS = 96  # prisms crossed per ray
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2  # agvsim.sensors.render.ray_records.SpanKind
-_FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
+FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
 
 
 # ------------------------------------------------------------------ textures
@@ -289,7 +289,7 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
             top = min(top, y_hi)
         if 0.0 <= h < hc and top > -0.5:
             y_near = cy + fy * (hc - h) / z_a
-            y_far = cy + fy * (hc - h) / z_b if z_b < _FAR else cy + fy * (hc - h) / _FAR
+            y_far = cy + fy * (hc - h) / z_b if z_b < FAR else cy + fy * (hc - h) / FAR
             y1 = min(y_near, top)
             if y_far < y1:
                 sp_y0[ns] = max(y_far, -0.5)
