@@ -37,7 +37,7 @@ def floor_level(tex, fk, foot):
 
 
 @jit
-def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, floor_depth):
+def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor_depth):
     """Draw the floor into ``radiance_t`` where ``drawn_t`` says a column shows it.
 
     Args:
@@ -47,8 +47,8 @@ def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, flo
             shows the floor over a whole pixel.
         row_lo, row_hi: ``(H,)`` int64: the first and last column ``drawn_t`` marks in each row
             (none if ``row_hi < row_lo``).
-        radiance_t: ``(W, H)`` float32 (the image transposed), out: the floor's radiance
-            (relative) at those pixels (others are left as they are).
+        radiance: ``(H, W)`` float32, out: the floor's radiance (relative) at those pixels
+            (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
     """
@@ -136,4 +136,4 @@ def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, flo
             q1 = q0 + ucols
             irr = ((irr_flat[q0 + c0] * (1.0 - gj) + irr_flat[q0 + c0 + one] * gj) * (1.0 - gi)
                    + (irr_flat[q1 + c0] * (1.0 - gj) + irr_flat[q1 + c0 + one] * gj) * gi)
-            radiance_t[j, i] = gain * alb * irr
+            radiance[i, j] = gain * alb * irr

@@ -7,7 +7,7 @@ the lighting level at the surface point, as the pyrender backend's deferred shad
 A frame (:func:`render_view`) is drawn in three passes: the spans of every column edge
 ray; the floor, row by row, where some column shows it over whole pixels
 (:mod:`agvsim.sensors.render._raycast_floor`); then each column, its spans shaded into
-one contiguous column of the (transposed) image: faces by
+one column of the image: faces by
 :mod:`agvsim.sensors.render._raycast_face`, the floor from the floor pass (the pixels a
 span covers only in part sampled where it does), tops and background here.
 """
@@ -27,6 +27,7 @@ from localizer._jit import fast_jit as jit
 __all__ = ["render_view", "shade_column"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2
+COLUMN_BLOCK = 16  # columns shaded between two row-wise stores (16 float32: one cache line)
 
 
 @inline
@@ -179,14 +180,16 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
 
 
 @jit
-def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t):
+def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth):
     """Draw one level frame.
 
     Args:
         view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
-        radiance_t: out ``(W, H)`` float32, radiance (relative), *transposed* (a column of the
-            image is contiguous: the column pass writes it in one run).
-        depth_t: out ``(W, H)`` float32, depth (m along the optical axis, 0 = nothing), transposed.
+        radiance: out ``(H, W)`` float32, radiance (relative).
+        depth: out ``(H, W)`` float32, depth (m along the optical axis, 0 = nothing).
+
+    The column pass shades each column into contiguous scratch and stores blocks of
+    :data:`COLUMN_BLOCK` columns a row at a time (no transposed copy of the frame afterwards).
     """
     w = view.width
     h = view.height
@@ -226,7 +229,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                         row_lo[i] = min(row_lo[i], j)
                         row_hi[i] = max(row_hi[i], j)
     floor_depth = np.empty(h, np.float32)
-    floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance_t, floor_depth)
+    floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor_depth)
     my0 = np.empty(MAX_SPANS)
     my1 = np.empty(MAX_SPANS)
     mkind = np.empty(MAX_SPANS, np.int64)
@@ -234,39 +237,55 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     mval = np.empty(MAX_SPANS)
     acc = np.zeros(h)
     dcol = np.zeros(h, np.float32)
-    floor_col = np.empty(h, np.float32)
     scratch = np.empty(h + 2 + 2 * (4 * h + 8))  # irradiance samples, two texel columns
     sub = max(view.subcolumns, 1)
-    for j in range(w):
-        oa = j * MAX_SPANS
-        ob = oa + MAX_SPANS
-        n_a = e_n[j]
-        n_b = e_n[j + 1]
-        acc[:] = 0.0
-        rad_col = radiance_t[j]
-        floor_col[:] = rad_col  # the floor pass's, before the column is written over
-        drawn_col = drawn_t[j]
-        if same_spans(n_a, e_kind[oa:], e_id[oa:], n_b, e_kind[ob:], e_id[ob:]):
-            for k in range(n_b):
-                my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
-                my1[k] = 0.5 * (e_y1[oa + k] + e_y1[ob + k])
-                if e_kind[ob + k] == _FACE:  # 1/Z is affine across a plane
-                    mval[k] = 2.0 / (1.0 / e_val[oa + k] + 1.0 / e_val[ob + k])
-                else:
-                    mval[k] = e_val[ob + k]
-            shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, e_kind[ob:], e_id[ob:], mval,
-                         j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_col, drawn_col, floor_depth)
-        else:
-            cand = items[start[j]:]
-            n_cand = start[j + 1] - start[j]
-            for q in range(sub):
-                x0 = j - 0.5 + q / sub
-                x1 = j - 0.5 + (q + 1) / sub
-                n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), cand, n_cand, hit_in, hit_out, hit_solid,
-                               hit_edge, my0, my1, mkind, mid, mval)
-                shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mkind, mid, mval,
-                             x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_col, drawn_col, floor_depth)
-        dep_col = depth_t[j]
+    # columns are shaded in blocks of COLUMN_BLOCK: the floor pass's values of a block are read,
+    # and its radiance and depth stored, a row of the block at a time (a column's own stride
+    # is a power of two: its cache lines would share a few sets of the cache)
+    blk_floor = np.empty((COLUMN_BLOCK, h), np.float32)
+    blk_rad = np.empty((COLUMN_BLOCK, h), np.float32)
+    blk_dep = np.empty((COLUMN_BLOCK, h), np.float32)
+    for j0 in range(0, w, COLUMN_BLOCK):
+        nb = min(COLUMN_BLOCK, w - j0)
+        for i in range(h):  # the floor pass's, before the columns are written over
+            for q in range(nb):
+                blk_floor[q, i] = radiance[i, j0 + q]
+        for q in range(nb):
+            j = j0 + q
+            floor_col = blk_floor[q]
+            oa = j * MAX_SPANS
+            ob = oa + MAX_SPANS
+            n_a = e_n[j]
+            n_b = e_n[j + 1]
+            acc[:] = 0.0
+            drawn_col = drawn_t[j]
+            if same_spans(n_a, e_kind[oa:], e_id[oa:], n_b, e_kind[ob:], e_id[ob:]):
+                for k in range(n_b):
+                    my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
+                    my1[k] = 0.5 * (e_y1[oa + k] + e_y1[ob + k])
+                    if e_kind[ob + k] == _FACE:  # 1/Z is affine across a plane
+                        mval[k] = 2.0 / (1.0 / e_val[oa + k] + 1.0 / e_val[ob + k])
+                    else:
+                        mval[k] = e_val[ob + k]
+                shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, e_kind[ob:], e_id[ob:],
+                             mval, j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_col, drawn_col, floor_depth)
+            else:
+                cand = items[start[j]:]
+                n_cand = start[j + 1] - start[j]
+                for qs in range(sub):
+                    x0 = j - 0.5 + qs / sub
+                    x1 = j - 0.5 + (qs + 1) / sub
+                    n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), cand, n_cand, hit_in, hit_out, hit_solid,
+                                   hit_edge, my0, my1, mkind, mid, mval)
+                    shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mkind, mid, mval,
+                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_col, drawn_col,
+                                 floor_depth)
+            rc = blk_rad[q]
+            dc = blk_dep[q]
+            for i in range(h):
+                rc[i] = acc[i]
+                dc[i] = dcol[i]
         for i in range(h):
-            rad_col[i] = acc[i]
-        dep_col[:] = dcol
+            for q in range(nb):
+                radiance[i, j0 + q] = blk_rad[q, i]
+                depth[i, j0 + q] = blk_dep[q, i]

@@ -82,10 +82,10 @@ class RaycastBackend:
         """``(radiance, depth)``, both ``(H, W)`` float32, of a level view."""
         from agvsim.sensors.render._raycast_frame import render_view
 
-        rad_t = np.empty((view.width, view.height), np.float32)
-        depth_t = np.empty((view.width, view.height), np.float32)
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, rad_t, depth_t)
-        return np.ascontiguousarray(rad_t.T), np.ascontiguousarray(depth_t.T)
+        radiance = np.empty((view.height, view.width), np.float32)
+        depth = np.empty((view.height, view.width), np.float32)
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance, depth)
+        return radiance, depth
 
     def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
         """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing).
