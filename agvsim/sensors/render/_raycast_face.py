@@ -265,11 +265,24 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
                 depth[i] = z
 
 
+#: fractional bits of the fixed-point texel coordinates of :func:`_plain_rows`
+FIXED_BITS = 32
+_FIXED_ONE = float(1 << FIXED_BITS)
+_FIXED_INV = 1.0 / _FIXED_ONE
+_FIXED_MASK = (1 << FIXED_BITS) - 1
+
+
 @inline
-def _lerp_at(buf, p):
-    """``buf`` interpolated linearly at ``p >= 0`` (unsigned indices: no wrap-around test per load)."""
-    q = np.uint64(p)
-    return buf[q] + (buf[q + np.uint64(1)] - buf[q]) * (p - math.floor(p))
+def _fixed(x):
+    """``x >= 0`` texels as a fixed-point integer (:data:`FIXED_BITS` fractional bits)."""
+    return np.int64(x * _FIXED_ONE)
+
+
+@inline
+def _lerp_fixed(buf, p):
+    """``buf`` interpolated linearly at the fixed-point coordinate ``p >= 0``."""
+    q = p >> FIXED_BITS
+    return buf[q] + (buf[q + 1] - buf[q]) * ((p & _FIXED_MASK) * _FIXED_INV)
 
 
 @inline
@@ -278,14 +291,24 @@ def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n
     subsamples of each level (weights ``w0``, ``w1``, gain included) times the irradiance.
 
     The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
-    subsamples need no clamping; the irradiance is stepped linearly within each of its
-    segments (``step`` rows from ``y0``)."""
+    subsamples need no clamping; their coordinates step by a constant per row, in fixed
+    point (:data:`FIXED_BITS` fractional bits: 2e-10 texel, no float-to-int conversion per
+    sample); the irradiance is stepped linearly within each of its segments (``step`` rows
+    from ``y0``)."""
     if hi < lo:
         return
     d0 = 0.25 * t0b
     d1 = 0.25 * t1b
     m0 = min(max(int((lo - y0) / step), 0), n_l - 2)
     m1 = min(max(int((hi - y0) / step), 0), n_l - 2)
+    # the subsamples' coordinates at row lo and their step per row (a negative step is exact
+    # in two's complement: the coordinates stay >= 0 over the rows)
+    pa = _fixed(t0a + t0b * lo - d0)
+    pb = _fixed(t0a + t0b * lo + d0)
+    pc = _fixed(t1a + t1b * lo - d1)
+    pd = _fixed(t1a + t1b * lo + d1)
+    s0 = np.int64(t0b * _FIXED_ONE)
+    s1 = np.int64(t1b * _FIXED_ONE)
     for m in range(m0, m1 + 1):
         a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
         b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
@@ -293,8 +316,10 @@ def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n
         base = irr[m] + (a - (y0 + m * step)) * slope
         for i in range(a, b + 1):
             e = base + (i - a) * slope
-            c0 = t0a + t0b * i
-            c1 = t1a + t1b * i
-            s0 = _lerp_at(buf0, c0 - d0) + _lerp_at(buf0, c0 + d0)
-            s1 = _lerp_at(buf1, c1 - d1) + _lerp_at(buf1, c1 + d1)
-            acc[i] += (w0 * s0 + w1 * s1) * e
+            v0 = _lerp_fixed(buf0, pa) + _lerp_fixed(buf0, pb)
+            v1 = _lerp_fixed(buf1, pc) + _lerp_fixed(buf1, pd)
+            acc[i] += (w0 * v0 + w1 * v1) * e
+            pa += s0
+            pb += s0
+            pc += s1
+            pd += s1
