@@ -60,8 +60,8 @@ def _face_irradiance(light, f, s, z):
 
 
 @inline
-def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf):
-    """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = the mean of the bilinear
+def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, scale, buf):
+    """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = ``scale`` x the mean of the bilinear
     samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated if
     tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach. Returns
     ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` in ``buf`` of image row ``y``.
@@ -101,10 +101,10 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, buf
     ca1 = off + ja1 * mh
     cb0 = off + jb0 * mh
     cb1 = off + jb1 * mh
-    wa0 = 0.5 * (1.0 - fa)
-    wa1 = 0.5 * fa
-    wb0 = 0.5 * (1.0 - fb)
-    wb1 = 0.5 * fb
+    wa0 = 0.5 * scale * (1.0 - fa)
+    wa1 = 0.5 * scale * fa
+    wb0 = 0.5 * scale * (1.0 - fb)
+    wb1 = 0.5 * scale * fb
     q = 0
     while q < n:
         r = k_lo + q
@@ -145,9 +145,10 @@ def _column_at(buf, t, n):
 
 
 @inline
-def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, w1, buf0, n0, t0a, t0b,
+def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0, t0a, t0b,
                 buf1, n1, t1a, t1b, d_lo, d_hi):
-    """``(cov, reflectance, ym)`` of face ``f`` in pixel row ``i`` (the part ``y0 .. y1`` covers)."""
+    """``(cov, reflectance, ym)`` of face ``f`` in pixel row ``i`` (the part ``y0 .. y1`` covers);
+    ``buf0``, ``buf1``: the span's texel columns, weighted by their trilinear weights."""
     ya = max(i - 0.5, y0)
     yb = min(i + 0.5, y1)
     cov = yb - ya
@@ -157,8 +158,8 @@ def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, w
     # two subsample rows, trilinear between the span's two levels
     ta = ym - 0.25
     tb = ym + 0.25
-    alb = ((1.0 - w1) * 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0))
-           + w1 * 0.5 * (_column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1)))
+    alb = 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
+                 + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
     z_top = hc - (ya - cy) * zpy
     z_bot = hc - (yb - cy) * zpy
     if z_top > d_lo and z_bot < d_hi:
@@ -220,8 +221,10 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     w1 = (lam - int(lam)) if lv1 > lv0 else 0.0
     t_lo = min(y0, y1) - 1.0
     t_hi = max(y0, y1) + 1.0
-    n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf0)
-    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, buf1)
+    # (each weighted by its trilinear weight)
+    n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, 1.0 - w1,
+                                 buf0)
+    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1, buf1)
     # the rows of decals that this column's footprint on the face crosses
     d_lo = 1e300
     d_hi = -1e300
@@ -251,14 +254,13 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     n_band = max(b_hi + 1 - b_lo, 0)
     for q in range(n_top + n_bot + n_band):
         i = i_lo + q if q < n_top else (bot + q - n_top if q < n_top + n_bot else b_lo + q - n_top - n_bot)
-        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, w1, buf0, n0,
+        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0,
                                    t0a, t0b, buf1, n1, t1a, t1b, d_lo, d_hi)
         if cov > 0.0:
             acc[i] += gain * cov * alb * _irr_at(irr_scratch, ym, y0, inv_step, n_l)
-    w0 = (1.0 - w1) * 0.5 * gain
-    w1 = w1 * 0.5 * gain
-    _plain_rows(f_lo, min(b_lo - 1, f_hi), w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
-    _plain_rows(max(b_hi + 1, f_lo), f_hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
+    g = 0.5 * gain  # the mean of the two subsample rows, and the gain
+    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
+    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
     if write_depth:
         for i in range(i_lo, i_hi + 1):
             if y0 <= i < y1:
@@ -286,9 +288,10 @@ def _lerp_fixed(buf, p):
 
 
 @inline
-def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n_l, acc):
-    """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: the two
-    subsamples of each level (weights ``w0``, ``w1``, gain included) times the irradiance.
+def _plain_rows(lo, hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr, y0, step, n_l, acc):
+    """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: ``g`` x the
+    sum of the two subsamples of each level (``buf0``, ``buf1``: the levels' texel columns,
+    weighted) times the irradiance.
 
     The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
     subsamples need no clamping; their coordinates step by a constant per row, in fixed
@@ -312,13 +315,12 @@ def _plain_rows(lo, hi, w0, buf0, t0a, t0b, w1, buf1, t1a, t1b, irr, y0, step, n
     for m in range(m0, m1 + 1):
         a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
         b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
-        slope = (irr[m + 1] - irr[m]) / step
-        base = irr[m] + (a - (y0 + m * step)) * slope
+        slope = g * (irr[m + 1] - irr[m]) / step
+        e = g * irr[m] + (a - (y0 + m * step)) * slope
         for i in range(a, b + 1):
-            e = base + (i - a) * slope
-            v0 = _lerp_fixed(buf0, pa) + _lerp_fixed(buf0, pb)
-            v1 = _lerp_fixed(buf1, pc) + _lerp_fixed(buf1, pd)
-            acc[i] += (w0 * v0 + w1 * v1) * e
+            acc[i] += (_lerp_fixed(buf0, pa) + _lerp_fixed(buf0, pb) + _lerp_fixed(buf1, pc)
+                       + _lerp_fixed(buf1, pd)) * e
+            e += slope
             pa += s0
             pb += s0
             pc += s1
