@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test install bench clean
+.PHONY: demo test install bench clean clean-kernels
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -31,3 +31,8 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out *.egg-info
+
+# numba's cache is keyed on each kernel's own file: after editing a helper that other files'
+# kernels inline or call, drop the compiled kernels (ARCHITECTURE.md, "Stale kernels")
+clean-kernels:
+	find agvsim localizer envs -name '*.nbi' -delete -o -name '*.nbc' -delete
