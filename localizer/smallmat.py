@@ -30,9 +30,11 @@ def solve(A, b):
     ``ZeroDivisionError``."""
     n = b.size
     M = np.empty((n, n + 1))
-    M[:, :n] = A
-    M[:, n] = b
-    _eliminate(M, n, 1)
+    for i in range(n):  # element by element: localizer._kernels.arrays says why
+        for j in range(n):
+            M[i, j] = A[i, j]
+        M[i, n] = b[i]
+    _eliminate(M, n, np.int64(1))  # typed int64, not Literal[int](1): one compiled _eliminate
     return M[:, n].copy()
 
 
@@ -42,8 +44,9 @@ def inverse(A):
     changed). An exactly singular ``A`` raises ``ZeroDivisionError``."""
     n = A.shape[0]
     M = np.zeros((n, 2 * n))
-    M[:, :n] = A
     for i in range(n):
+        for j in range(n):
+            M[i, j] = A[i, j]
         M[i, n + i] = 1.0
     _eliminate(M, n, n)
     return M[:, n:].copy()

@@ -22,4 +22,7 @@ Modules, in pipeline order:
 * :mod:`.exact_pose` -- the perspective-exact pose fit;
 * :mod:`.measure` -- subpixel edges, target test and exact pose fused in one call;
 * :mod:`.photometric` -- the whole-target photometric refinement.
+
+and :mod:`.arrays`, the element-wise copies the kernels use instead of assigning an array to
+a slice (smaller compiled code: its docstring says why).
 """

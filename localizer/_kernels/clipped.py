@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from localizer._jit import jit
+from localizer._kernels.arrays import copy, copy_rows
 from localizer._kernels.blur import CLIP, blur_weights, blurred_step, edge_fraction
 from localizer.smallmat import solve
 
@@ -137,12 +138,13 @@ def fit_bar_profile(image, rows, bounds, e_init, positive):
         p[4] = 0.5
         p[6] = pmin
         p[5] = pmin + B_STARTS[start % len(B_STARTS)] * (255.0 - pmin)
-        cost = lm_bar(prof, a, idx, p, positive, 6)
+        # iteration counts typed int64, not Literal[int](6) and (30): one compiled lm_bar, not two
+        cost = lm_bar(prof, a, idx, p, positive, np.int64(6))
         if cost < best_cost:
             best_cost = cost
-            best[:] = p
-    p[:] = best
-    lm_bar(prof, a, idx, p, positive, 30)
+            copy(p, best)
+    copy(best, p)
+    lm_bar(prof, a, idx, p, positive, np.int64(30))
     # sharp edges: the clipped pixels hide where in them each edge lies, and the model
     # has nothing to add to the centroids (whose common shift the pose fit takes out)
     if p[4] < SIGMA_MIN:
@@ -190,9 +192,9 @@ def lm_bar(prof, a, idx, p, positive, iterations):
         cq = bar_model(prof, a, idx, q, positive, Jq, rq)
         if cq < cost:
             conv = cost - cq < 1e-6 * (cost + 1e-9)
-            p[:] = q
-            J[:, :] = Jq
-            res[:] = rq
+            copy(q, p)
+            copy_rows(Jq, J)
+            copy(rq, res)
             cost = cq
             lam = max(lam * 0.3, 1e-7)
             if conv:

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from localizer._jit import jit
+from localizer._kernels.arrays import copy
 from localizer._kernels.projection import bar_edges_u, edge_x_jacobian, plane, ray_inverse_range
 from localizer._kernels.records import FitGeometry, FitStatus, PoseFit
 from localizer.smallmat import inverse, null_vector, solve_augmented
@@ -225,12 +226,12 @@ def fit(m, cam, target, positive, sigma_floor, iterations):
     b, H = target.bar_width, target.bar_height
     meas = np.empty(8)
     sig = np.empty(8)
-    meas[:4] = edges
-    meas[4:6] = top
-    meas[6:] = bot
-    sig[:4] = edges_sd
-    sig[4:6] = top_sd
-    sig[6:] = bot_sd
+    copy(edges, meas[:4])
+    copy(top, meas[4:6])
+    copy(bot, meas[6:])
+    copy(edges_sd, sig[:4])
+    copy(top_sd, sig[4:6])
+    copy(bot_sd, sig[6:])
     wv = 1.0 / np.sqrt(sig * sig + sigma_floor * sigma_floor)
     top = meas[4:6].copy()
     bot = meas[6:8].copy()

@@ -4,6 +4,9 @@ Subpixel edges (:func:`localizer._kernels.subpixel.subpixel`), the target test
 (:func:`localizer._kernels.target_test.makes_target`) and the exact pose fit
 (:func:`localizer._kernels.exact_pose.fit`) of one verified stack: Python between
 these steps cost as much as the steps.
+
+Its callees are compiled into it, and numba's cache keys on this file alone: after a change
+to a callee, the cached ``exact_measure`` in ``__pycache__`` is the old code until removed.
 """
 from __future__ import annotations
 

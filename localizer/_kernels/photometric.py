@@ -296,10 +296,11 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
         p[4] = dark0
         p[5] = bright0 if bright0 < CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = max(sigma0, SIGMA_MIN)
-        c = lm(p, obs, sel, cam, target, positive, START_ITERATIONS)
+        # iteration counts typed int64, not as the literals 6 and 30: one compiled lm, not two
+        c = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS))
         if c < best_cost:
             best_cost = c
             best[:] = p
     p[:] = best
-    cost = lm(p, obs, sel, cam, target, positive, ITERATIONS)
+    cost = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS))
     return Refinement(True, p, n, cost)

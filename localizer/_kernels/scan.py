@@ -1,7 +1,8 @@
 """Kernels of :mod:`localizer.scan`: line thresholding, run-length coding and the triple
 search (thesis §4.4-4.5.1) on a batch of scan lines, a ``(k, W)`` uint8 array.
 
-Loops here work on slices passed to small kernels (:func:`copy`, :func:`fill`,
+Loops here work on slices passed to small kernels (:func:`~localizer._kernels.arrays.copy`,
+:func:`~localizer._kernels.arrays.fill`,
 :func:`max_min_into`, :func:`threshold_line`): loops with computed indices do not
 vectorise.
 """
@@ -12,6 +13,7 @@ import math
 import numpy as np
 
 from localizer._jit import inline, jit
+from localizer._kernels.arrays import copy, fill
 
 
 @jit
@@ -58,20 +60,6 @@ def line_extrema(lines, window):
         copy(x1[r * n:r * n + w], hi[r])
         copy(n1[r * n:r * n + w], lo[r])
     return hi, lo
-
-
-@jit
-def copy(src, dst):
-    """``dst[:] = src[:dst.size]`` (a loop that vectorises)."""
-    for i in range(dst.size):
-        dst[i] = src[i]
-
-
-@jit
-def fill(dst, v):
-    """``dst[:] = v``."""
-    for i in range(dst.size):
-        dst[i] = v
 
 
 @jit
@@ -188,7 +176,7 @@ def rle(binary):
 def grown(a, n, cap):
     """A ``(cap,)`` array of ``a``'s dtype holding ``a[:n]``."""
     out = np.empty(cap, a.dtype)
-    out[:n] = a[:n]
+    copy(a, out[:n])
     return out
 
 

@@ -8,7 +8,8 @@ import numpy as np
 from localizer._jit import jit
 from localizer._kernels.fine import fine_stack
 from localizer._kernels.records import CANDIDATE, SEARCH_COUNTS, Reject, RunTest, SearchResult
-from localizer._kernels.scan import copy, levels, line_extrema, rle, threshold, triples
+from localizer._kernels.arrays import copy, copy_rows
+from localizer._kernels.scan import levels, line_extrema, rle, threshold, triples
 from localizer._kernels.verify import verify
 
 
@@ -108,13 +109,13 @@ def recognize(image, settings):
         m = srows.size
         while nrows + m > rows_out.size:
             grown = np.empty(2 * rows_out.size, np.int64)
-            grown[:nrows] = rows_out[:nrows]
+            copy(rows_out, grown[:nrows])
             rows_out = grown
             xg = np.empty((2 * x_out.shape[0], 4), np.int64)
-            xg[:nrows] = x_out[:nrows]
+            copy_rows(x_out, xg[:nrows])
             x_out = xg
-        rows_out[nrows:nrows + m] = srows
-        x_out[nrows:nrows + m] = sx
+        copy(srows, rows_out[nrows:nrows + m])
+        copy_rows(sx, x_out[nrows:nrows + m])
         v = verify(image, srows, med, pk, s)
         ok = v.reason == Reject.NONE
         cd = cand[nc]
