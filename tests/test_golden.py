@@ -8,10 +8,18 @@
 
 Any change to these figures is a change of behaviour and must be deliberate:
 re-record the file in the same commit and say why.
+
+Floats are compared to :data:`REL` (relative): the same seed gives the same numbers bit for bit
+on one machine (the determinism tests hold that), but not across CPUs: numpy's BLAS and LLVM
+choose their kernels by CPU, which changes the last bits (on an AMD Zen 5 the figures recorded
+on an Intel Xeon come out within 2e-11 for drift and the thesis table, and the localizer's means
+within 1e-8: its iterative fits carry the last bits further). A change of behaviour moves them
+by orders of magnitude more.
 """
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -21,6 +29,8 @@ from agvsim.cli import main
 GOLDEN = Path(__file__).parent / "golden"
 #: wall-clock and machine fields: they differ from run to run
 TIMING = {"observe_ms_median", "filter_ms_median", "ms_median", "ms_p90", "wall_time_s", "machine", "files"}
+#: relative tolerance of a float figure (module docstring: the last bits differ between CPUs)
+REL = 1e-7
 
 
 def _differences(expected, actual, path: str = "") -> list[str]:
@@ -38,6 +48,9 @@ def _differences(expected, actual, path: str = "") -> list[str]:
         if len(expected) != len(actual):
             return [f"{path}: {len(expected)} items != {len(actual)}"]
         return [d for i, (e, a) in enumerate(zip(expected, actual)) for d in _differences(e, a, f"{path}[{i}]")]
+    if (isinstance(expected, float) and isinstance(actual, float)
+            and math.isclose(expected, actual, rel_tol=REL, abs_tol=REL * 1e-3)):
+        return []
     return [] if expected == actual else [f"{path}: {expected!r} != {actual!r}"]
 
 
@@ -48,8 +61,9 @@ def _run_json(argv: list[str], capsys) -> dict:
 
 def test_differences_sees_a_changed_figure():
     assert _differences({"a": [1.0, {"b": 2.0}], "wall_time_s": 1}, {"a": [1.0, {"b": 2.0}], "wall_time_s": 9}) == []
-    assert _differences({"a": [1.0, {"b": 2.0}]}, {"a": [1.0, {"b": 2.0000000000000004}]}) == [
-        ".a[1].b: 2.0 != 2.0000000000000004"]
+    assert _differences({"a": [1.0, {"b": 2.0}]}, {"a": [1.0, {"b": 2.0 * (1 + 1e-8)}]}) == []  # last bits
+    assert _differences({"a": [1.0, {"b": 2.0}]}, {"a": [1.0, {"b": 2.000001}]}) == [".a[1].b: 2.0 != 2.000001"]
+    assert _differences({"n": 3}, {"n": 4}) == [".n: 3 != 4"]
 
 
 @pytest.mark.slow
