@@ -39,24 +39,29 @@ def _face_s(view, faces, f, x):
 
 
 @inline
-def _face_irradiance(light, f, s, z):
-    """Ambient + lamps on face ``f`` at ``s`` (m along it), ``z`` (m up): bilinear in the
-    face's table (cells of ``light.face_res``, built once per map)."""
+def _face_irradiance(light, f, s, z_top, dz, n, out):
+    """Ambient + lamps on face ``f`` at ``s`` (m along it) and the heights ``z_top - m dz``
+    (m up), ``m = 0 .. n - 1``, into ``out[:n]``: bilinear in the face's table (cells of
+    ``light.face_res``, built once per map); the column of the table at ``s`` is interpolated
+    once."""
     res = light.face_res
+    inv_res = 1.0 / res
     nc = light.face_cols[f]
     nr = light.face_rows[f]
-    fs = min(max(s / res, 0.0), nc - 1.0)
-    fz = min(max(z / res, 0.0), nr - 1.0)
+    fs = min(max(s * inv_res, 0.0), nc - 1.0)
     j = min(int(fs), nc - 2) if nc > 1 else 0
-    i = min(int(fz), nr - 2) if nr > 1 else 0
     ts = fs - j
-    tz = fz - i
-    base = light.face_offset[f] + i * nc + j
     t = light.face_irr
     j1 = 1 if nc > 1 else 0
     i1 = nc if nr > 1 else 0
-    return ((t[base] * (1.0 - ts) + t[base + j1] * ts) * (1.0 - tz)
-            + (t[base + i1] * (1.0 - ts) + t[base + i1 + j1] * ts) * tz)
+    col = light.face_offset[f] + j
+    for m in range(n):
+        fz = min(max((z_top - m * dz) * inv_res, 0.0), nr - 1.0)
+        i = min(int(fz), nr - 2) if nr > 1 else 0
+        tz = fz - i
+        base = col + i * nc
+        out[m] = ((t[base] * (1.0 - ts) + t[base + j1] * ts) * (1.0 - tz)
+                  + (t[base + i1] * (1.0 - ts) + t[base + i1 + j1] * ts) * tz)
 
 
 @inline
@@ -203,8 +208,7 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     n_l = int(math.ceil((y1 - y0) / LIGHT_ROWS)) + 1
     step = (y1 - y0) / (n_l - 1)
     inv_step = 1.0 / step
-    for m in range(n_l):
-        irr_scratch[m] = _face_irradiance(light, f, s_c, hc - (y0 + m * step - cy) * zpy)
+    _face_irradiance(light, f, s_c, hc - (y0 - cy) * zpy, step * zpy, n_l, irr_scratch)
     # the texture, filtered as the pyrender reference samples it (2 x 2 supersampling, each
     # sample trilinear at the supersampled footprint): u is fixed across the span and v
     # linear in the row, so each mip level is a column of texels along the span (buf0, buf1)
