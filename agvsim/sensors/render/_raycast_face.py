@@ -265,10 +265,9 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
     _plain_rows(f_lo, min(b_lo - 1, f_hi), g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
     _plain_rows(max(b_hi + 1, f_lo), f_hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
-    if write_depth:
-        for i in range(i_lo, i_hi + 1):
-            if y0 <= i < y1:
-                depth[i] = z
+    if write_depth:  # the pixel centres inside the span: y0 <= i < y1
+        for i in range(max(int(math.ceil(y0)), i_lo), min(int(math.ceil(y1)) - 1, i_hi) + 1):
+            depth[i] = z
 
 
 #: fractional bits of the fixed-point texel coordinates of :func:`_plain_rows`
