@@ -234,7 +234,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
                     lo_rows[q] = min(lo_rows[q], ja)
                     hi_rows[q] = jb  # the rays come in column order
     floor_depth = np.empty(h, np.float32)
-    floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor_depth)
+    floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth)
     my0 = np.empty(MAX_SPANS)
     my1 = np.empty(MAX_SPANS)
     mkind = np.empty(MAX_SPANS, np.int64)
