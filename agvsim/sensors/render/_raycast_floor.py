@@ -14,8 +14,6 @@ at the footprint's scale, the texture repeating every tile), at the pixel's cent
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from agvsim.sensors.render._raycast_kernels import FAR
@@ -37,22 +35,29 @@ def floor_level(tex, fk, foot):
 
 
 @jit
-def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor_depth):
-    """Draw the floor into ``radiance_t`` where ``drawn_t`` says a column shows it.
+def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth):
+    """Draw the floor into ``radiance`` over each row's range of columns.
 
     Args:
         view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
         tex, light, floor: the scene's :class:`Textures`, :class:`Light`, :class:`Floor`.
-        drawn_t: ``(W, H)`` uint8: the pixels to draw (image transposed), 1 where some column
-            shows the floor over a whole pixel.
-        row_lo, row_hi: ``(H,)`` int64: the first and last column ``drawn_t`` marks in each row
-            (none if ``row_hi < row_lo``).
+        row_lo, row_hi: ``(H,)`` int64: the first and last column of each row where some column
+            shows the floor over a whole pixel (none if ``row_hi < row_lo``). Every pixel between
+            them is drawn, including those a column does not show the floor at: the column pass
+            reads the floor only where it does, and writes every pixel of the frame.
         radiance: ``(H, W)`` float32, out: the floor's radiance (relative) at those pixels
             (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
+
+    A row is drawn in two loops: the first, vectorised, takes each pixel's texel and raster
+    coordinates (linear in the column, thesis §3.5) to the flat indices and bilinear weights of
+    its 2 x 2 texels and 2 x 2 lighting cells; the second gathers them (scalar loads) and
+    multiplies. The numbers are the per-pixel sample's up to float64 rounding (the floor point is
+    stepped from the row's first column, not from column 0).
     """
     h = view.height
+    w = view.width
     cy = view.cy
     k = view.fy * view.cam_z
     horizon = k / FAR
@@ -66,74 +71,90 @@ def floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor
     irr_raster = light.floor_zone_irradiance if zoned else light.floor_irradiance
     gain = 1.0 if zoned else view.level
     rows_r, cols_r = irr_raster.shape
-    irr_flat = irr_raster.ravel()
+    irr = irr_raster.ravel()
     ucols = np.uint64(cols_r)
     cmax = cols_r - 1.0  # the raster is at least 2 x 2 (RaycastBackend pads a thinner one)
     rmax = rows_r - 1.0
     one = np.uint64(1)
-    zero = np.uint64(0)
     inv_res = 1.0 / light.raster_res
     mip = tex.mip
     x_step_x = view.right_x / view.fx  # floor point per column per metre of depth
     x_step_y = view.right_y / view.fx
     base_x = view.fwd_x - view.cx * x_step_x  # direction of column 0's ray
     base_y = view.fwd_y - view.cx * x_step_y
+    # per pixel of a row, 4 apart (one pointer each in the gather loop): the first texel's flat
+    # index, the steps to the next texel along u and up v (the tile wraps: uint64 arithmetic
+    # modulo 2^64), the first lighting cell's flat index; the weights along u, v, x, y
+    idx = np.empty(4 * w, np.uint64)
+    wts = np.empty(4 * w)
     for i in range(h):
         j_lo = row_lo[i]
         j_hi = row_hi[i]
         if j_hi < j_lo:
             continue
+        n = j_hi + 1 - j_lo
         zm = k / (i - cy) if i - cy > horizon else FAR
         za = k / (i + 0.5 - cy) if i + 0.5 - cy > horizon else FAR
         zb = k / (i - 0.5 - cy) if i - 0.5 - cy > horizon else FAR
         lv = floor_level(tex, fk, max(zb - za, zm / view.fx) * inv_tw * tex_w)
         mw = tex.mip_width[fk, lv]
         mh = tex.mip_height[fk, lv]
-        moff = np.uint64(tex.mip_offset[fk, lv])
-        umw = np.uint64(mw)
+        moff = tex.mip_offset[fk, lv]
         fmw = float(mw)
         fmh = float(mh)
-        # floor point of column j: (px0 + j dpx, py0 + j dpy); texel and raster coordinates linear in j
-        px0 = view.cam_x + zm * base_x
-        py0 = view.cam_y + zm * base_y
+        inv_mw = 1.0 / fmw
+        inv_mh = 1.0 / fmh
+        # the floor point of column j_lo + q: (px + q dpx, py + q dpy)
         dpx = zm * x_step_x
         dpy = zm * x_step_y
-        su = inv_tw * mw
+        px = view.cam_x + zm * base_x + j_lo * dpx
+        py = view.cam_y + zm * base_y + j_lo * dpy
+        su = inv_tw * mw  # texels per metre
         sv = inv_th * mh
-        inv_mw = 1.0 / mw
-        inv_mh = 1.0 / mh
-        for j in range(j_lo, j_hi + 1):
-            if not drawn_t[j, i]:
-                continue
-            px = px0 + j * dpx
-            py = py0 + j * dpy
-            # texel coordinates folded into the tile (0 <= x < mw), unsigned indices from there
-            xt = px * su - 0.5
-            yt = py * sv - 0.5
-            xt = xt - fmw * math.floor(xt * inv_mw)
-            yt = yt - fmh * math.floor(yt * inv_mh)
-            xf = min(math.floor(xt), fmw - 1.0)
-            yf = min(math.floor(yt), fmh - 1.0)
-            fj = xt - xf
-            fi = yt - yf
-            j0 = np.uint64(xf)
-            i0 = np.uint64(yf)
-            j1 = j0 + one if xf + 1.0 < fmw else zero
-            i1 = i0 + one if yf + 1.0 < fmh else zero
-            r0 = moff + i0 * umw
-            r1 = moff + i1 * umw
-            alb = ((mip[r0 + j0] * (1.0 - fj) + mip[r0 + j1] * fj) * (1.0 - fi)
-                   + (mip[r1 + j0] * (1.0 - fj) + mip[r1 + j1] * fj) * fi)
-            # the lighting raster, bilinear, edge cells repeated
-            mx = min(max((px - light.raster_x0) * inv_res, 0.0), cmax)
-            my = min(max((py - light.raster_y0) * inv_res, 0.0), rmax)
-            gx = min(math.floor(mx), cmax - 1.0)
-            gy = min(math.floor(my), rmax - 1.0)
-            gj = mx - gx
-            gi = my - gy
-            c0 = np.uint64(gx)
-            q0 = np.uint64(gy) * ucols
-            q1 = q0 + ucols
-            irr = ((irr_flat[q0 + c0] * (1.0 - gj) + irr_flat[q0 + c0 + one] * gj) * (1.0 - gi)
-                   + (irr_flat[q1 + c0] * (1.0 - gj) + irr_flat[q1 + c0 + one] * gj) * gi)
-            radiance[i, j] = gain * alb * irr
+        u0 = px * su - 0.5
+        v0 = py * sv - 0.5
+        du = dpx * su
+        dv = dpy * sv
+        mx0 = (px - light.raster_x0) * inv_res
+        my0 = (py - light.raster_y0) * inv_res
+        dmx = dpx * inv_res
+        dmy = dpy * inv_res
+        for q in range(n):
+            fq = float(q)
+            # texel coordinates folded into the tile (0 <= u < mw up to rounding)
+            u = u0 + fq * du
+            v = v0 + fq * dv
+            u = u - fmw * np.floor(u * inv_mw)
+            v = v - fmh * np.floor(v * inv_mh)
+            j0 = min(int(u), mw - 1)
+            i0 = min(int(v), mh - 1)
+            idx[4 * q] = moff + i0 * mw + j0
+            idx[4 * q + 1] = 1 if j0 + 1 < mw else 1 - mw
+            idx[4 * q + 2] = mw if i0 + 1 < mh else (1 - mh) * mw
+            wts[4 * q] = u - j0
+            wts[4 * q + 1] = v - i0
+            # the lighting raster, edge cells repeated
+            mx = min(max(mx0 + fq * dmx, 0.0), cmax)
+            my = min(max(my0 + fq * dmy, 0.0), rmax)
+            gx = min(int(mx), cols_r - 2)
+            gy = min(int(my), rows_r - 2)
+            idx[4 * q + 3] = gy * cols_r + gx
+            wts[4 * q + 2] = mx - gx
+            wts[4 * q + 3] = my - gy
+        out = radiance[i, j_lo:j_hi + 1]
+        for q in range(n):
+            a = idx[4 * q]
+            b = a + idx[4 * q + 1]
+            c = a + idx[4 * q + 2]
+            d = c + idx[4 * q + 1]
+            fj = wts[4 * q]
+            fi = wts[4 * q + 1]
+            alb = ((mip[a] * (1.0 - fj) + mip[b] * fj) * (1.0 - fi)
+                   + (mip[c] * (1.0 - fj) + mip[d] * fj) * fi)
+            g0 = idx[4 * q + 3]
+            g1 = g0 + ucols
+            gj = wts[4 * q + 2]
+            gi = wts[4 * q + 3]
+            irr_q = ((irr[g0] * (1.0 - gj) + irr[g0 + one] * gj) * (1.0 - gi)
+                     + (irr[g1] * (1.0 - gj) + irr[g1 + one] * gj) * gi)
+            out[q] = gain * alb * irr_q

@@ -216,20 +216,25 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
     drawn_t = np.zeros((w, h), np.uint8)
     row_lo = np.full(h, w, np.int64)  # the first and last column to draw in each row
     row_hi = np.full(h, -1, np.int64)
-    for j in range(w):
-        col = drawn_t[j]
-        for r in (j, j + 1):
-            o = r * MAX_SPANS
-            for k in range(e_n[r]):
-                if e_kind[o + k] == _FLAT and e_id[o + k] < 0 and e_y1[o + k] > e_y0[o + k]:
-                    lo = max(int(math.ceil(e_y0[o + k] + 0.5)), 0)
-                    hi = min(int(math.floor(e_y1[o + k] - 0.5)), h - 1)
-                    col[lo:hi + 1] = 1
-                    for i in range(lo, hi + 1):
-                        row_lo[i] = min(row_lo[i], j)
-                        row_hi[i] = max(row_hi[i], j)
+    for r in range(w + 1):  # edge ray r bounds columns r - 1 and r (one of them at the image's sides)
+        ja = max(r - 1, 0)
+        jb = min(r, w - 1)
+        o = r * MAX_SPANS
+        for k in range(e_n[r]):
+            if e_kind[o + k] == _FLAT and e_id[o + k] < 0 and e_y1[o + k] > e_y0[o + k]:
+                lo = max(int(math.ceil(e_y0[o + k] + 0.5)), 0)
+                hi = min(int(math.floor(e_y1[o + k] - 0.5)), h - 1)
+                if hi < lo:
+                    continue
+                drawn_t[ja, lo:hi + 1] = 1
+                drawn_t[jb, lo:hi + 1] = 1
+                lo_rows = row_lo[lo:hi + 1]  # slices: the loop below is vectorised
+                hi_rows = row_hi[lo:hi + 1]
+                for q in range(hi + 1 - lo):
+                    lo_rows[q] = min(lo_rows[q], ja)
+                    hi_rows[q] = jb  # the rays come in column order
     floor_depth = np.empty(h, np.float32)
-    floor_rows(view, tex, light, floor, drawn_t, row_lo, row_hi, radiance, floor_depth)
+    floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth)
     my0 = np.empty(MAX_SPANS)
     my1 = np.empty(MAX_SPANS)
     mkind = np.empty(MAX_SPANS, np.int64)
