@@ -5,8 +5,8 @@ and relative (:mod:`agvsim.sensors.render.lighting`): reflectance x (ambient + l
 the lighting level at the surface point, as the pyrender backend's deferred shading.
 
 A frame (:func:`render_view`) is drawn in three passes: the spans of every column edge
-ray; the floor, row by row, where some column shows it over whole pixels
-(:mod:`agvsim.sensors.render._raycast_floor`); then each column, its spans shaded into
+ray; the floor, row by row, over the columns between the first and last that show it over
+a whole pixel in that row (:mod:`agvsim.sensors.render._raycast_floor`); then each column, its spans shaded into
 one column of the image: faces by
 :mod:`agvsim.sensors.render._raycast_face`, the floor from the floor pass (the pixels a
 span covers only in part sampled where it does), tops and background here.
