@@ -173,6 +173,100 @@ def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, b
 
 
 @inline
+def _sat_row_span(sat, row, ja, fa, jb, fb):
+    """Row ``row`` of a summed-area table (``sat[row:]``, flattened) at column ``jb + fb`` minus
+    at ``ja + fa`` (linear between table columns)."""
+    return (sat[row + jb] + (sat[row + jb + 1] - sat[row + jb]) * fb
+            - sat[row + ja] - (sat[row + ja + 1] - sat[row + ja]) * fa)
+
+
+@inline
+def _sat_cols(x, w):
+    """A decal's texel column coordinate ``x`` (clamped to ``0 .. w``) as ``(j, frac)`` with
+    ``0 <= j < w``: the summed-area table's column ``j`` and the weight of ``j + 1``."""
+    j = min(max(int(math.floor(x)), 0), w - 1)
+    return j, x - j
+
+
+@inline
+def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, buf0, n0, t0a, t0b, buf1, n1,
+                t1a, t1b, irr, y0, inv_step, n_l, acc):
+    """Rows ``lo .. hi`` of a face span that covers them whole and that decals reach: the
+    face's own reflectance (as :func:`_face_pixel`) where no decal is, each decal's printed
+    face integrated exactly over the part of the pixel it covers (as
+    :func:`agvsim.sensors.render._raycast_kernels.decal_cover`, whose result this is to
+    rounding), times the irradiance, into ``acc``.
+
+    Decal by decal: its columns over the footprint ``s_lo .. s_hi`` (m along the face) are
+    found once, then each row's integral is the difference of two rows of the summed-area
+    table, each read at those two columns."""
+    n = hi + 1 - lo
+    cover = np.zeros(2 * n)  # [q]: sum of coverage x printed mean; [n + q]: sum of coverage
+    if s_hi - s_lo < 1e-9:
+        s_hi = s_lo + 1e-9
+    inv_sw = 1.0 / (s_hi - s_lo)
+    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
+        a = max(s_lo, decals.s0[d])
+        b = min(s_hi, decals.s1[d])
+        dz0 = decals.z0[d]
+        dz1 = decals.z1[d]
+        if b <= a:
+            continue
+        k = decals.texture[d]
+        w = tex.width[k]
+        h = tex.height[k]
+        stride = w + 1
+        off = tex.offset[k]
+        sat = tex.sat
+        dw = decals.s1[d] - decals.s0[d]
+        dh = dz1 - dz0
+        # the box's columns in texels, clamped and widened as box_average does
+        ua = min(max((a - decals.s0[d]) / dw * w, 0.0), w - 1e-6)
+        ub = min(max((b - decals.s0[d]) / dw * w, 1e-6), float(w))
+        if ub - ua < 1e-6:
+            mu = 0.5 * (ua + ub)
+            ua = mu - 5e-7
+            ub = mu + 5e-7
+        ja, fa = _sat_cols(ua, w)
+        jb, fb = _sat_cols(ub, w)
+        weight = (b - a) * inv_sw / (ub - ua)  # the footprint's share over the box's width in texels
+        r_lo = max(lo, int(math.floor((hc - dz1) / zpy + cy - 0.5)))
+        r_hi = min(hi, int(math.ceil((hc - dz0) / zpy + cy + 0.5)))
+        for i in range(r_lo, r_hi + 1):
+            z_top = hc - (i - 0.5 - cy) * zpy
+            z_bot = hc - (i + 0.5 - cy) * zpy
+            c = max(z_bot, dz0)
+            e = min(z_top, dz1)
+            if e <= c:
+                continue
+            vc = min(max((c - dz0) / dh * h, 0.0), h - 1e-6)
+            ve = min(max((e - dz0) / dh * h, 1e-6), float(h))
+            if ve - vc < 1e-6:
+                mv = 0.5 * (vc + ve)
+                vc = mv - 5e-7
+                ve = mv + 5e-7
+            ic, gc = _sat_cols(vc, h)
+            ie, ge = _sat_cols(ve, h)
+            rc = off + ic * stride
+            re = off + ie * stride
+            top = (_sat_row_span(sat, re, ja, fa, jb, fb) * (1.0 - ge)
+                   + _sat_row_span(sat, re + stride, ja, fa, jb, fb) * ge)
+            bottom = (_sat_row_span(sat, rc, ja, fa, jb, fb) * (1.0 - gc)
+                      + _sat_row_span(sat, rc + stride, ja, fa, jb, fb) * gc)
+            share = (e - c) / (z_top - z_bot)  # of the pixel's height
+            q = i - lo
+            cover[q] += (top - bottom) * weight * share / (ve - vc)
+            cover[n + q] += (b - a) * inv_sw * share
+    for q in range(n):
+        i = lo + q
+        ta = i - 0.25
+        tb = i + 0.25
+        own = 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
+                     + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
+        acc[i] += gain * (own * (1.0 - cover[n + q]) + cover[q]) * _irr_at(irr, float(i), y0, inv_step, n_l)
+
+
+@inline
 def _irr_at(irr, ym, y0, inv_step, n_l):
     """The span's irradiance at row coordinate ``ym`` (linear between its samples)."""
     qq = (ym - y0) * inv_step
@@ -256,12 +350,15 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     bot = max(f_hi + 1, f_lo, i_lo)
     n_bot = max(i_hi + 1 - bot, 0)
     n_band = max(b_hi + 1 - b_lo, 0)
-    for q in range(n_top + n_bot + n_band):
-        i = i_lo + q if q < n_top else (bot + q - n_top if q < n_top + n_bot else b_lo + q - n_top - n_bot)
+    for q in range(n_top + n_bot):
+        i = i_lo + q if q < n_top else bot + q - n_top
         cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0,
                                    t0a, t0b, buf1, n1, t1a, t1b, d_lo, d_hi)
         if cov > 0.0:
             acc[i] += gain * cov * alb * _irr_at(irr_scratch, ym, y0, inv_step, n_l)
+    if n_band > 0:
+        _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, buf0, n0, t0a, t0b, buf1, n1,
+                    t1a, t1b, irr_scratch, y0, inv_step, n_l, acc)
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
     _plain_rows(f_lo, min(b_lo - 1, f_hi), g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
     _plain_rows(max(b_hi + 1, f_lo), f_hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
