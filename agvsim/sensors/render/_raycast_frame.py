@@ -38,6 +38,21 @@ def _wrap(x, n, inv_n):
 
 
 @inline
+def _whole_rows(y0, y1, h):
+    """``(lo, hi)``: the rows ``0 <= i < h`` the span ``y0 .. y1`` covers whole (none if ``hi < lo``)."""
+    return max(int(math.ceil(y0 + 0.5)), 0), min(int(math.floor(y1 - 0.5)), h - 1)
+
+
+@inline
+def _zero_outside(acc, lo, hi):
+    """``acc`` set to 0 but at ``lo .. hi`` (everywhere if ``hi < lo``; ``lo <= acc.size``)."""
+    for i in range(lo):
+        acc[i] = 0.0
+    for i in range(max(hi + 1, lo), acc.size):
+        acc[i] = 0.0
+
+
+@inline
 def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight, acc, depth, write_depth):
     h_img = view.height
     fy = view.fy
@@ -104,14 +119,17 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
 
 @inline
 def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth, floor_col,
-                drawn_col, floor_depth):
+                drawn_col, floor_depth, skip_lo, skip_hi):
     """A span of the floor in one column: the pixels it covers whole and the floor pass drew
-    (``drawn_col``, the pass's ``floor_col``), the others from :func:`_shade_flat`."""
+    (``drawn_col``, the pass's ``floor_col``), the others from :func:`_shade_flat`; rows
+    ``skip_lo .. skip_hi`` (whole, drawn) not at all (the caller takes them from the floor pass)."""
     i_lo = max(int(math.floor(y0 + 0.5)), 0)
     i_hi = min(int(math.floor(y1 + 0.5)), view.height - 1)
     f_lo = max(int(math.ceil(y0 + 0.5)), i_lo)  # rows covered whole
     f_hi = min(int(math.floor(y1 - 0.5)), i_hi)
     for i in range(i_lo, i_hi + 1):
+        if skip_lo <= i <= skip_hi:
+            continue
         if f_lo <= i <= f_hi and drawn_col[i]:
             acc[i] += weight * floor_col[i]
             if write_depth:
@@ -126,7 +144,8 @@ def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, de
 
 @inline
 def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y1, sp_kind, sp_id, sp_val,
-                 x0, x1, weight, acc, depth, write_depth, irr_scratch, floor_col, drawn_col, floor_depth):
+                 x0, x1, weight, acc, depth, write_depth, irr_scratch, floor_col, drawn_col, floor_depth, skip_lo,
+                 skip_hi):
     """Add ``weight`` x the radiance of the spans of the (sub-)column ``x0 .. x1`` of column
     ``j`` to ``acc``.
 
@@ -138,6 +157,8 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
         floor_col, drawn_col, floor_depth: the column's floor from the floor pass
             (:func:`agvsim.sensors.render._raycast_floor.floor_rows`): radiance ``(H,)``, which
             rows it drew ``(H,)`` uint8, the floor's depth per row ``(H,)``.
+        skip_lo, skip_hi: rows a floor span covers whole and the pass drew that are left out
+            (neither ``acc`` nor ``depth`` written there; none if ``skip_hi < skip_lo``).
     """
     h_img = view.height
     for k in range(ns):
@@ -151,7 +172,7 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
                         write_depth, irr_scratch)
         elif kind == _FLAT and sp_id[k] < 0:
             _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth,
-                        floor_col, drawn_col, floor_depth)
+                        floor_col, drawn_col, floor_depth, skip_lo, skip_hi)
         elif kind == _FLAT:
             _shade_flat(view, tex, light, floor, solids, sp_id[k], sp_val[k], y0, y1, x0, x1, weight, acc, depth,
                         write_depth)
@@ -190,6 +211,9 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
 
     The column pass shades each column into contiguous scratch and stores blocks of
     :data:`COLUMN_BLOCK` columns a row at a time (no transposed copy of the frame afterwards).
+    The floor pass draws into ``radiance``; where a column's largest floor span covers the rows
+    whole and the pass drew them, the column leaves its values there (the sum it would take, 0 +
+    1 x the pass's value, is that value) and stores only the floor's depth.
     """
     w = view.width
     h = view.height
@@ -244,26 +268,27 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
     dcol = np.zeros(h, np.float32)
     scratch = np.empty(h + 2 + 2 * (4 * h + 8))  # irradiance samples, two texel columns
     sub = max(view.subcolumns, 1)
-    # columns are shaded in blocks of COLUMN_BLOCK: the floor pass's values of a block are read,
-    # and its radiance and depth stored, a row of the block at a time (a column's own stride
-    # is a power of two: its cache lines would share a few sets of the cache)
-    blk_floor = np.empty((COLUMN_BLOCK, h), np.float32)
+    # columns are shaded in blocks of COLUMN_BLOCK and their radiance and depth stored a row of
+    # the block at a time (a column's own stride is a power of two: its cache lines would share
+    # a few sets of the cache). Of the floor, a column's largest span leaves the rows it covers
+    # whole where the floor pass drew them (keep_lo .. keep_hi): there the pass's radiance stays
+    # in the frame, as it is (0 + 1 x it, the column's sum) and the depth is the floor's row's
     blk_rad = np.empty((COLUMN_BLOCK, h), np.float32)
     blk_dep = np.empty((COLUMN_BLOCK, h), np.float32)
+    keep_lo = np.empty(COLUMN_BLOCK, np.int64)
+    keep_hi = np.empty(COLUMN_BLOCK, np.int64)
     for j0 in range(0, w, COLUMN_BLOCK):
         nb = min(COLUMN_BLOCK, w - j0)
-        for i in range(h):  # the floor pass's, before the columns are written over
-            for q in range(nb):
-                blk_floor[q, i] = radiance[i, j0 + q]
         for q in range(nb):
             j = j0 + q
-            floor_col = blk_floor[q]
+            floor_col = radiance[:, j]  # the floor pass's (the block is stored after its columns)
             oa = j * MAX_SPANS
             ob = oa + MAX_SPANS
             n_a = e_n[j]
             n_b = e_n[j + 1]
-            acc[:] = 0.0
             drawn_col = drawn_t[j]
+            s_lo = h
+            s_hi = -1
             if same_spans(n_a, e_kind[oa:], e_id[oa:], n_b, e_kind[ob:], e_id[ob:]):
                 for k in range(n_b):
                     my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
@@ -272,9 +297,35 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
                         mval[k] = 2.0 / (1.0 / e_val[oa + k] + 1.0 / e_val[ob + k])
                     else:
                         mval[k] = e_val[ob + k]
+                    if e_kind[ob + k] == _FLAT and e_id[ob + k] < 0:
+                        lo, hi = _whole_rows(my0[k], my1[k], h)
+                        if hi - lo > s_hi - s_lo:
+                            # of them, those the floor pass drew: the edge rays' same span's
+                            # whole rows (the middle's lie between theirs), when they meet
+                            la, ha = _whole_rows(e_y0[oa + k], e_y1[oa + k], h)
+                            lb, hb = _whole_rows(e_y0[ob + k], e_y1[ob + k], h)
+                            if ha < la:
+                                la, ha = lb, hb
+                            elif hb >= lb and max(la, lb) <= min(ha, hb) + 1:
+                                la, ha = min(la, lb), max(ha, hb)
+                            elif hb - lb > ha - la:
+                                la, ha = lb, hb
+                            lo = max(lo, la)
+                            hi = min(hi, ha)
+                            if hi - lo > s_hi - s_lo:
+                                s_lo = lo
+                                s_hi = hi
+                if s_hi < s_lo:
+                    s_lo = h
+                    s_hi = -1
+                _zero_outside(acc, s_lo, s_hi)
                 shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, e_kind[ob:], e_id[ob:],
-                             mval, j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_col, drawn_col, floor_depth)
+                             mval, j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_col, drawn_col, floor_depth,
+                             s_lo, s_hi)
+                for i in range(s_lo, s_hi + 1):  # as the floor span would have written it
+                    dcol[i] = floor_depth[i]
             else:
+                acc[:] = 0.0
                 cand = items[start[j]:]
                 n_cand = start[j + 1] - start[j]
                 for qs in range(sub):
@@ -284,13 +335,45 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
                                    hit_edge, my0, my1, mkind, mid, mval)
                     shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mkind, mid, mval,
                                  x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_col, drawn_col,
-                                 floor_depth)
+                                 floor_depth, h, -1)
+            keep_lo[q] = s_lo
+            keep_hi[q] = s_hi
             rc = blk_rad[q]
             dc = blk_dep[q]
-            for i in range(h):
+            for i in range(s_lo):
                 rc[i] = acc[i]
                 dc[i] = dcol[i]
-        for i in range(h):
+            for i in range(max(s_hi + 1, s_lo), h):
+                rc[i] = acc[i]
+                dc[i] = dcol[i]
+        # the rows every column of the block keeps (all_lo .. all_hi) get the floor's depth
+        # only; the others are stored whole, a column's kept ones among them from the floor pass
+        all_lo = keep_lo[0]
+        all_hi = keep_hi[0]
+        for q in range(1, nb):
+            all_lo = max(all_lo, keep_lo[q])
+            all_hi = min(all_hi, keep_hi[q])
+        if all_hi < all_lo:
+            all_lo = h
+            all_hi = h - 1
+        for q in range(nb):
+            rc = blk_rad[q]
+            dc = blk_dep[q]
+            for i in range(keep_lo[q], min(keep_hi[q] + 1, all_lo)):
+                rc[i] = radiance[i, j0 + q]
+                dc[i] = floor_depth[i]
+            for i in range(max(keep_lo[q], all_hi + 1), keep_hi[q] + 1):
+                rc[i] = radiance[i, j0 + q]
+                dc[i] = floor_depth[i]
+        for i in range(all_lo):
+            for q in range(nb):
+                radiance[i, j0 + q] = blk_rad[q, i]
+                depth[i, j0 + q] = blk_dep[q, i]
+        for i in range(all_lo, all_hi + 1):
+            fd = floor_depth[i]
+            for q in range(nb):
+                depth[i, j0 + q] = fd
+        for i in range(all_hi + 1, h):
             for q in range(nb):
                 radiance[i, j0 + q] = blk_rad[q, i]
                 depth[i, j0 + q] = blk_dep[q, i]

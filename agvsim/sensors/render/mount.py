@@ -60,6 +60,10 @@ def rotation_from_vector(rvec) -> np.ndarray:
     return c * np.eye(3) + c1 * rrt + s * r_x
 
 
+_NO_JITTER = jitter_rotation(0.0, 0.0)  # read only
+_NO_JITTER.flags.writeable = False
+
+
 @dataclass(frozen=True)
 class CameraPose:
     """The camera's pose for one frame.
@@ -81,7 +85,9 @@ class CameraPose:
     @classmethod
     def from_vehicle(cls, mount: CameraMount, vehicle_pose, pitch: float = 0.0, roll: float = 0.0) -> "CameraPose":
         pos, heading = mount.camera_pose(vehicle_pose)
-        rot = level_rotation(heading) @ jitter_rotation(pitch, roll)
+        no_jitter = pitch == 0.0 and roll == 0.0 and math.copysign(1.0, pitch) > 0.0 and math.copysign(1.0, roll) > 0.0
+        # jitter_rotation(0.0, 0.0), the identity (its -sin 0 entries are +0.0), is built once
+        rot = level_rotation(heading) @ (_NO_JITTER if no_jitter else jitter_rotation(pitch, roll))
         return cls(pos, heading, rot, pitch, roll)
 
     def to_camera(self, points_map) -> np.ndarray:

@@ -301,14 +301,21 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
         depth: ``(H * s, W * s)`` depth buffer (m, 0 = nothing) rendered with ``supersample`` s.
     Returns:
         ``(m,)`` fractions in [0, 1]; 1 for a target none of whose points falls in the buffer.
+
+    Compiled (:func:`agvsim.sensors.render._truth_kernels.occluded_fraction`): the same as
+    sampling the buffer at ``floor((px + 0.5) s)`` in NumPy, bit for bit; hidden: nothing there
+    (0) or something nearer than ``z - (0.004 + 0.0005 z)`` (as the points are > NEAR away the
+    threshold is > 0, so that is ``0 <= zbuf < threshold``).
     """
-    h, w = depth.shape
-    ij = np.floor((px + 0.5) * supersample).astype(np.int64)  # (m, k, 2) column, row
-    inside = ij.view(np.uint64) < np.array((w, h), dtype=np.uint64)  # negatives wrap to huge
-    ok = inside[..., 0] & inside[..., 1]
-    zbuf = depth[ij[..., 1] * ok, ij[..., 0] * ok]  # (m, k); pixel (0, 0) where not ok
-    # hidden: nothing there (0) or something nearer; as the points are > NEAR away the threshold
-    # is > 0, so that is 0 <= zbuf < threshold
-    hidden = (zbuf >= 0) & (zbuf < z - (0.004 + 0.0005 * z)) & ok
-    n_ok = ok.sum(axis=1)
-    return np.where(n_ok > 0, hidden.sum(axis=1) / np.maximum(n_ok, 1), 1.0)
+    global _occluded_kernel
+    if _occluded_kernel is None:
+        from agvsim.sensors.render._truth_kernels import occluded_fraction
+
+        _occluded_kernel = occluded_fraction
+    out = np.empty(z.shape[0])
+    _occluded_kernel(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
+                     depth, int(supersample), out)
+    return out
+
+
+_occluded_kernel = None  # the compiled test, imported at the first frame that needs it
