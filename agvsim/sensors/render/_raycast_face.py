@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from agvsim.sensors.render._raycast_kernels import decal_cover, raster_lookup
+from agvsim.sensors.render._raycast_kernels import box_edges, decal_cover, raster_lookup, sat_cell
 from localizer._jit import fast_inline as inline
 
 __all__ = ["LIGHT_ROWS", "shade_face"]
@@ -150,6 +150,17 @@ def _column_at(buf, t, n):
 
 
 @inline
+def _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, ym):
+    """The face's own reflectance at row coordinate ``ym``: its two subsample rows
+    (``ym -+ 1/4``), trilinear between the span's two levels (``buf0``, ``buf1``: their texel
+    columns, weighted; coordinate ``ta + tb y`` of image row ``y``)."""
+    ta = ym - 0.25
+    tb = ym + 0.25
+    return 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
+                  + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
+
+
+@inline
 def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0, t0a, t0b,
                 buf1, n1, t1a, t1b, d_lo, d_hi):
     """``(cov, reflectance, ym)`` of face ``f`` in pixel row ``i`` (the part ``y0 .. y1`` covers);
@@ -160,11 +171,7 @@ def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, b
     if cov <= 0.0:
         return 0.0, 0.0, 0.0
     ym = 0.5 * (ya + yb)
-    # two subsample rows, trilinear between the span's two levels
-    ta = ym - 0.25
-    tb = ym + 0.25
-    alb = 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
-                 + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
+    alb = _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, ym)
     z_top = hc - (ya - cy) * zpy
     z_bot = hc - (yb - cy) * zpy
     if z_top > d_lo and z_bot < d_hi:
@@ -178,14 +185,6 @@ def _sat_row_span(sat, row, ja, fa, jb, fb):
     at ``ja + fa`` (linear between table columns)."""
     return (sat[row + jb] + (sat[row + jb + 1] - sat[row + jb]) * fb
             - sat[row + ja] - (sat[row + ja + 1] - sat[row + ja]) * fa)
-
-
-@inline
-def _sat_cols(x, w):
-    """A decal's texel column coordinate ``x`` (clamped to ``0 .. w``) as ``(j, frac)`` with
-    ``0 <= j < w``: the summed-area table's column ``j`` and the weight of ``j + 1``."""
-    j = min(max(int(math.floor(x)), 0), w - 1)
-    return j, x - j
 
 
 @inline
@@ -221,14 +220,9 @@ def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, bu
         dw = decals.s1[d] - decals.s0[d]
         dh = dz1 - dz0
         # the box's columns in texels, clamped and widened as box_average does
-        ua = min(max((a - decals.s0[d]) / dw * w, 0.0), w - 1e-6)
-        ub = min(max((b - decals.s0[d]) / dw * w, 1e-6), float(w))
-        if ub - ua < 1e-6:
-            mu = 0.5 * (ua + ub)
-            ua = mu - 5e-7
-            ub = mu + 5e-7
-        ja, fa = _sat_cols(ua, w)
-        jb, fb = _sat_cols(ub, w)
+        ua, ub = box_edges((a - decals.s0[d]) / dw * w, (b - decals.s0[d]) / dw * w, w)
+        ja, fa = sat_cell(ua, w)
+        jb, fb = sat_cell(ub, w)
         weight = (b - a) * inv_sw / (ub - ua)  # the footprint's share over the box's width in texels
         r_lo = max(lo, int(math.floor((hc - dz1) / zpy + cy - 0.5)))
         r_hi = min(hi, int(math.ceil((hc - dz0) / zpy + cy + 0.5)))
@@ -239,14 +233,9 @@ def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, bu
             e = min(z_top, dz1)
             if e <= c:
                 continue
-            vc = min(max((c - dz0) / dh * h, 0.0), h - 1e-6)
-            ve = min(max((e - dz0) / dh * h, 1e-6), float(h))
-            if ve - vc < 1e-6:
-                mv = 0.5 * (vc + ve)
-                vc = mv - 5e-7
-                ve = mv + 5e-7
-            ic, gc = _sat_cols(vc, h)
-            ie, ge = _sat_cols(ve, h)
+            vc, ve = box_edges((c - dz0) / dh * h, (e - dz0) / dh * h, h)
+            ic, gc = sat_cell(vc, h)
+            ie, ge = sat_cell(ve, h)
             rc = off + ic * stride
             re = off + ie * stride
             top = (_sat_row_span(sat, re, ja, fa, jb, fb) * (1.0 - ge)
@@ -259,10 +248,7 @@ def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, bu
             cover[n + q] += (b - a) * inv_sw * share
     for q in range(n):
         i = lo + q
-        ta = i - 0.25
-        tb = i + 0.25
-        own = 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
-                     + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
+        own = _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, float(i))
         acc[i] += gain * (own * (1.0 - cover[n + q]) + cover[q]) * _irr_at(irr, float(i), y0, inv_step, n_l)
 
 

@@ -33,8 +33,8 @@ import numpy as np
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "cast_ray", "decal_cover", "lamp_irradiance",
-           "raster_lookup", "same_spans"]
+__all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "box_edges", "cast_ray", "decal_cover", "lamp_irradiance",
+           "raster_lookup", "same_spans", "sat_cell"]
 
 MAX_SPANS = 96  # spans per ray (a column crossing every rack of a plant sees ~20)
 MAX_HITS = 96  # prisms crossed per ray
@@ -44,22 +44,32 @@ FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
 
 # ------------------------------------------------------------------ textures
 @inline
+def box_edges(lo, hi, n):
+    """A box's edges ``lo <= hi`` (texels) on a table of ``n`` texels: clamped to ``0 .. n`` (at
+    least 1e-6 inside), and widened to 1e-6 about their middle when thinner (a point sample)."""
+    lo = min(max(lo, 0.0), n - 1e-6)
+    hi = min(max(hi, 1e-6), float(n))
+    if hi - lo < 1e-6:
+        m = 0.5 * (lo + hi)
+        lo, hi = m - 5e-7, m + 5e-7
+    return lo, hi
+
+
+@inline
+def sat_cell(x, n):
+    """Coordinate ``x`` (``0 .. n``) of a summed-area table of ``n`` texels as ``(j, frac)``,
+    ``0 <= j < n``: the table's entry ``j`` and the weight of ``j + 1``."""
+    j = min(max(int(math.floor(x)), 0), n - 1)
+    return j, x - j
+
+
+@inline
 def _sat_at(sat, off, w, h, rows, cols):
     """Bilinear value of a summed-area table (exact integral of the texels) at fractional
     ``(rows, cols)`` inside ``0..h, 0..w``."""
-    i = int(math.floor(rows))
-    j = int(math.floor(cols))
+    i, fi = sat_cell(rows, h)
+    j, fj = sat_cell(cols, w)
     stride = w + 1
-    if i >= h:
-        i = h - 1
-    if j >= w:
-        j = w - 1
-    if i < 0:
-        i = 0
-    if j < 0:
-        j = 0
-    fi = rows - i
-    fj = cols - j
     base = off + i * stride + j
     s00 = sat[base]
     s01 = sat[base + 1]
@@ -83,16 +93,8 @@ def box_average(tex, k, u0, u1, v0, v1):
     b *= w
     c *= h
     d *= h
-    a = min(max(a, 0.0), w - 1e-6)
-    b = min(max(b, 1e-6), float(w))
-    c = min(max(c, 0.0), h - 1e-6)
-    d = min(max(d, 1e-6), float(h))
-    if b - a < 1e-6:
-        m = 0.5 * (a + b)
-        a, b = m - 5e-7, m + 5e-7
-    if d - c < 1e-6:
-        m = 0.5 * (c + d)
-        c, d = m - 5e-7, m + 5e-7
+    a, b = box_edges(a, b, w)
+    c, d = box_edges(c, d, h)
     sat = tex.sat
     total = (_sat_at(sat, off, w, h, d, b) - _sat_at(sat, off, w, h, d, a)
              - _sat_at(sat, off, w, h, c, b) + _sat_at(sat, off, w, h, c, a))

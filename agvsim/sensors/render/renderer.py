@@ -100,9 +100,6 @@ class RenderConditions:
         return cls(**base)
 
 
-_raycast_sensor = None  # the raycaster's sensor kernels and records (CameraRenderer._raycast_frame)
-
-
 class CameraRenderer:
     """Renders camera frames of one map; create once per world and reuse.
 
@@ -223,13 +220,9 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        global _raycast_sensor
-        if _raycast_sensor is None:  # imported at the first raycast frame (pyrender loads no kernels)
-            from agvsim.sensors.render._sensor_kernels import expose, motion_blur, nearest_depth
-            from agvsim.sensors.render.ray_records import BlurScratch, MotionBlurParams, SensorParams
+        from agvsim.sensors.render._sensor_kernels import expose, motion_blur, nearest_depth
+        from agvsim.sensors.render.ray_records import BlurScratch, MotionBlurParams, SensorParams
 
-            _raycast_sensor = (expose, motion_blur, nearest_depth, BlurScratch, MotionBlurParams, SensorParams)
-        expose, motion_blur, nearest_depth, BlurScratch, MotionBlurParams, SensorParams = _raycast_sensor
         c = self.camera
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level)
         v, w = conditions.velocity

@@ -307,15 +307,9 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
     (0) or something nearer than ``z - (0.004 + 0.0005 z)`` (as the points are > NEAR away the
     threshold is > 0, so that is ``0 <= zbuf < threshold``).
     """
-    global _occluded_kernel
-    if _occluded_kernel is None:
-        from agvsim.sensors.render._truth_kernels import occluded_fraction
+    from agvsim.sensors.render._truth_kernels import occluded_fraction
 
-        _occluded_kernel = occluded_fraction
     out = np.empty(z.shape[0])
-    _occluded_kernel(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
-                     depth, int(supersample), out)
+    occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
+                      depth, int(supersample), out)
     return out
-
-
-_occluded_kernel = None  # the compiled test, imported at the first frame that needs it
