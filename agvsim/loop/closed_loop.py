@@ -31,8 +31,8 @@ import numpy as np
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.vision import VisionConfig, targets_from_map
 from agvsim.vehicle.simulation import SimConfig, Simulation, StepResult
-from localizer.filter import (FilterConfig, FrameResult, GateConfig, Measurement, OdometryAccumulator,
-                              OdometryNoise, PoseEKF, compose_jacobians)
+from localizer.filter import (TRACKING, ContactSlip, FilterConfig, FrameResult, GateConfig, Measurement,
+                              OdometryAccumulator, OdometryNoise, PoseEKF, compose_jacobians)
 from localizer.numeric import check_choice, check_number, check_numbers, wrap_angle
 
 __all__ = ["ClosedLoop", "FusedFrame", "LoopConfig", "LoopStep", "filter_config_for", "odometry_noise_for",
@@ -173,9 +173,12 @@ class ClosedLoop:
     """Simulation + camera + filter on a map, stepped at the control rate.
 
     Args:
-        world_map: the map (the world, and the filter's target list).
-        start_pose: true start pose (x m, y m, θ rad); dead reckoning starts there and
-            the filter at it plus ``config.initial_error`` (the AGV is told where it starts).
+        world_map: the map (the world, the filter's target list and its free space).
+        start_pose: true start pose (x m, y m, θ rad); dead reckoning starts there.
+        believed_pose: what the filter is told: None (the start pose plus
+            ``config.initial_error``, with ``config.initial_sigma``), a pose (x m, y m, θ rad)
+            with ``config.initial_sigma``, or ``"unknown"``: the filter starts lost
+            (``status`` ``lost``) and localizes from the targets it sees.
         rng: the run's generator, split into odometry and camera streams (``rng.spawn(2)``).
         config: how the loop is put together.
         source: observation source (:class:`~agvsim.sensors.base.ObservationSource`), or None
@@ -185,7 +188,7 @@ class ClosedLoop:
     """
 
     def __init__(self, world_map, start_pose, rng: np.random.Generator, config: LoopConfig = LoopConfig(),
-                 source=None, localization: str = "ekf") -> None:
+                 source=None, localization: str = "ekf", believed_pose=None) -> None:
         check_choice("localization", localization, LOCALIZATION_MODES)
         self.map = world_map
         self.config = config
@@ -196,13 +199,27 @@ class ClosedLoop:
         self.sim = Simulation(world_map, start, config.sim, sim_rng)
         noise = odometry_noise_for(config.sim)
         fcfg = config.filter or filter_config_for(config.sim, self.vision, noise)
-        x0 = np.asarray(start) + np.asarray(config.initial_error, dtype=float)
+        unknown = isinstance(believed_pose, str)
+        if unknown and believed_pose != "unknown":
+            raise ValueError(f"believed_pose must be None, a pose (x, y, theta) or 'unknown', got {believed_pose!r}")
         P0 = np.diag(np.asarray(config.initial_sigma, dtype=float) ** 2)
-        self.ekf = PoseEKF(x0, P0, targets_from_map(world_map), self.vision.mount, fcfg, t0=0.0)
+        if unknown:  # the map's centre, nothing believed: the filter starts lost
+            xmin, ymin, xmax, ymax = world_map.bounds
+            x0 = np.array([0.5 * (xmin + xmax), 0.5 * (ymin + ymax), 0.0])
+        elif believed_pose is not None:
+            x0 = np.array(check_numbers("believed_pose", believed_pose, 3), dtype=float)
+        else:
+            x0 = np.asarray(start) + np.asarray(config.initial_error, dtype=float)
+        self.ekf = PoseEKF(x0, P0, targets_from_map(world_map), self.vision.mount, fcfg, t0=0.0,
+                           free_space=world_map.is_free)
+        if unknown:
+            self.ekf.declare_lost("start pose unknown")
         self.source = source
         # dead reckoning's covariance: the filter's motion model accumulated from the (known) start
         self._start = np.asarray(start, dtype=float)
         self._odometry_motion = OdometryAccumulator(noise) if localization == "odometry" else None
+        self._odometry_slip = ContactSlip(fcfg.contact_slip, noise.track_width)
+        self.kidnaps = 0  # times the vehicle was carried off (kidnap)
         self.period = 1.0 / config.camera_rate  # s
         self.latency = config.latency
         self.next_frame = self.period  # s
@@ -254,6 +271,36 @@ class ClosedLoop:
             return G @ acc.Q @ G.T
         return self.ekf.covariance()
 
+    def localization_info(self) -> dict:
+        """The localization's state for the agent (``info["localization"]``): ``status``
+        (``tracking``, ``lost`` or ``relocalizing``), ``position_sigma`` (m, the largest
+        standard deviation of the believed position), ``since_fix`` (s since the last
+        accepted target observation, or re-localization), ``reason`` (why lost; None while
+        tracking), ``lost_events`` and ``relocalizations`` (counts this episode).
+
+        For ``localization="odometry"`` the status is always ``tracking`` and ``since_fix``
+        the time since the start; for ``"truth"`` σ and ``since_fix`` are 0."""
+        now = self.sim.time
+        if self.localization == "truth":
+            return {"status": TRACKING, "position_sigma": 0.0, "since_fix": 0.0, "reason": None,
+                    "lost_events": 0, "relocalizations": 0}
+        if self.localization == "odometry":
+            P = self.covariance
+            a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+            sigma = float(np.sqrt(max(0.5 * (a + d) + np.hypot(0.5 * (a - d), b), 0.0)))
+            return {"status": TRACKING, "position_sigma": sigma, "since_fix": now, "reason": None,
+                    "lost_events": 0, "relocalizations": 0}
+        ekf = self.ekf
+        return {"status": ekf.status, "position_sigma": ekf.position_sigma(), "since_fix": ekf.since_fix(now),
+                "reason": ekf.lost_reason, "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
+
+    def kidnap(self, pose) -> None:
+        """Carry the vehicle to ``pose`` (x m, y m, θ rad) without telling the filter (the
+        kidnapped robot): the wheels do not turn, dead reckoning and the filter carry on from
+        where they were. Raises ``ValueError`` if the chassis would overlap a wall or obstacle."""
+        self.sim.place_vehicle(tuple(check_numbers("kidnap pose", pose, 3)))
+        self.kidnaps += 1
+
     @property
     def last_frame(self) -> np.ndarray | None:
         """The latest camera frame ((H, W) uint8), if the source draws frames."""
@@ -269,9 +316,11 @@ class ClosedLoop:
         t1 = perf()
         now = self.sim.time
         dt = self._dt
-        self.ekf.add_odometry(now, result.ds, result.dtheta)
+        touched = result.in_contact or bool(result.contacts)  # the bumper, during the step
+        self.ekf.add_odometry(now, result.ds, result.dtheta, touched)
         if self._odometry_motion is not None:
-            self._odometry_motion.add(result.ds, result.dtheta)
+            self._odometry_motion.add(result.ds, result.dtheta,
+                                      self._odometry_slip.extra(result.ds, result.dtheta, touched))
         timings["sim"] += t1 - t0
         timings["filter"] += perf() - t1
         fused = []

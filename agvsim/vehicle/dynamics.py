@@ -214,6 +214,18 @@ class DiffDriveVehicle:
         self._w_cmd = w_cmd
         return out_ds, out_dtheta, out_wheels
 
+    def place(self, pose: tuple[float, float, float]) -> None:
+        """Put the chassis at ``pose`` (x m, y m, θ rad) at rest, as if carried there (the
+        wheels do not turn: the encoders count nothing). For kidnapped-robot experiments."""
+        x, y, theta = (check_number(f"pose {name}", float(p)) for name, p in zip("xyθ", pose))
+        for body in (self.body, self.control):
+            body.position = (x, y)
+            body.angle = theta
+            body.velocity = (0.0, 0.0)
+            body.angular_velocity = 0.0
+        self._v_cmd = self._w_cmd = 0.0
+        self.space.reindex_shapes_for_body(self.body)
+
     def stop(self) -> None:
         """Zero the command at once (an emergency stop, no slew)."""
         self._v_cmd = self._w_cmd = 0.0

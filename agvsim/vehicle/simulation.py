@@ -108,6 +108,21 @@ class Simulation:
     def odometry_pose(self) -> tuple[float, float, float]:
         return self.odometry.pose
 
+    def place_vehicle(self, pose: tuple[float, float, float]) -> None:
+        """Carry the vehicle to ``pose`` (x m, y m, θ rad) without its wheels turning: dead
+        reckoning does not notice (a kidnapped robot). Raises ``ValueError`` if the chassis
+        there would overlap a wall or an obstacle."""
+        x, y, _ = (float(v) for v in pose)
+        vp = self.config.vehicle
+        clearance = self.map.clearance(x, y)
+        xmin, ymin, xmax, ymax = self.map.bounds
+        if not (xmin <= x <= xmax and ymin <= y <= ymax):
+            raise ValueError(f"vehicle pose ({x:.2f}, {y:.2f}) is outside the map's bounds {self.map.bounds}")
+        if clearance < 0.5 * math.hypot(vp.length, vp.width):
+            raise ValueError(f"vehicle pose ({x:.2f}, {y:.2f}): {clearance:.2f} m from the nearest wall or "
+                             f"obstacle, the chassis needs {0.5 * math.hypot(vp.length, vp.width):.2f} m")
+        self.vehicle.place(pose)
+
     def step(self, v: float, omega: float) -> StepResult:
         """Drive with the command (v m/s, ω rad/s) for one control step."""
         if not (math.isfinite(v) and math.isfinite(omega)):  # the hot path stays two float checks

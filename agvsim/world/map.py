@@ -260,6 +260,15 @@ class Map:
         """Free distance (m) from ``(x, y)`` to the nearest wall surface or obstacle (< 0 inside)."""
         return self.solids.point_clearance((x, y))[0]
 
+    def is_free(self, x: float, y: float, margin: float = 0.0) -> bool:
+        """Whether ``(x, y)`` (m) is inside :attr:`bounds` and more than ``margin`` (m) from every
+        wall surface and obstacle: where a vehicle's reference point can be (the filter's
+        ``free_space``)."""
+        xmin, ymin, xmax, ymax = self.bounds
+        if not (xmin <= x <= xmax and ymin <= y <= ymax):
+            return False
+        return self.clearance(x, y) > margin
+
     def line_of_sight(self, a, b) -> bool:
         """Whether the straight segment ``a``-``b`` (``(2,)`` m) crosses no wall or obstacle."""
         return self.solids.blocker(a, b) is None

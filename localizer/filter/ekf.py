@@ -21,10 +21,32 @@ residual; filterpy 2.0's EKF update is in Joseph form,
 too; the NIS of each update is read from filterpy's innovation ``y`` and its
 covariance ``S`` (:func:`~localizer.filter.update.nis`).
 
-Lost: position σ (largest eigenvalue of P_xy) above ``lost_position_sigma``,
-heading σ above ``lost_heading_sigma``, or ``lost_rejected_frames`` frames in a
-row with a target predicted in view whose observations were all refused. Then :class:`~localizer.filter.relocalize.Relocalizer`
-takes the frames until a hypothesis is confirmed.
+Slip (:class:`~localizer.filter.motion.ContactSlip`): while the vehicle reports contact
+(``add_odometry(..., in_contact=True)``: its bumper), the odometry noise grows with the wheel
+motion counted since the contact began (``contact_slip``: 1 = all of it may be slip), so the
+covariance stays honest while the wheels spin against a wall.
+
+Status (:data:`STATUSES`): ``tracking``; ``lost`` (no live re-localization hypothesis) or
+``relocalizing`` (hypotheses alive, none confirmed yet). The filter declares itself lost,
+with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
+
+* position σ (largest eigenvalue of P_xy) above ``lost_position_sigma``, or heading σ above
+  ``lost_heading_sigma``;
+* ``lost_rejected_frames`` frames in a row with a target predicted in view whose
+  observations were all refused;
+* consistent detections that the estimate cannot explain: detections with no target of their
+  polarity predicted in view, placed in the map from the estimate, that fall within
+  ``unexplained_radius`` of one another over ``lost_unexplained_frames`` frames (one real
+  target seen from a wrong estimate stays put, as odometry moves the estimate with the
+  vehicle; false detections do not line up). The check that works far from the truth;
+* the estimate outside the map's free space (inside a wall or an obstacle, or outside the
+  map), when the filter was given ``free_space``;
+* the mean NIS of the last ``nis_window`` accepted updates above the χ²(3 ``nis_window``)
+  quantile of ``nis_probability`` divided by ``nis_window`` (consistently poor fits);
+* told so: :meth:`PoseEKF.declare_lost` (an unknown start pose).
+
+Then :class:`~localizer.filter.relocalize.Relocalizer` takes the frames until a hypothesis is
+confirmed (global re-localization from nothing: the main state plays no part in it).
 """
 from __future__ import annotations
 
@@ -35,15 +57,21 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.filter.association import ACCEPTED, Association, GateConfig, associate
+from localizer.filter.association import ACCEPTED, Association, GateConfig, associate, gate_threshold
 from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
-from localizer.filter.motion import OdometryAccumulator, OdometryNoise, compose_jacobians
+from localizer.filter.motion import ContactSlip, OdometryAccumulator, OdometryNoise, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
 from localizer.filter.update import PoseKF, predict_pose, update_pose
 from localizer.numeric import check_number, check_numbers, wrap_angle
 
-__all__ = ["FilterConfig", "FrameResult", "PoseEKF"]
+__all__ = ["FilterConfig", "FrameResult", "LOST", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING"]
+
+TRACKING = "tracking"  # the estimate and its covariance are to be trusted
+LOST = "lost"  # the filter does not know where the vehicle is, and has no candidate pose
+RELOCALIZING = "relocalizing"  # lost, with candidate poses (hypotheses) being tested
+#: the filter's states, in the order of their codes (the env's ``status`` observation)
+STATUSES = (TRACKING, LOST, RELOCALIZING)
 
 
 @dataclass(frozen=True)
@@ -60,6 +88,15 @@ class FilterConfig:
         lost_heading_sigma: heading σ (rad) above which the filter is lost.
         lost_rejected_frames: frames in a row with observations and a target predicted in view,
             none accepted, before lost.
+        lost_unexplained_frames: frames whose unexplained detections line up (module
+            docstring) before lost.
+        unexplained_radius: how close (m) two frames' unexplained detections, placed in the
+            map from the estimate, must be to line up.
+        nis_window: accepted updates whose mean NIS is watched.
+        nis_probability: lost when that mean exceeds the χ²(3 ``nis_window``) quantile of this
+            probability over ``nis_window``.
+        contact_slip: share of the wheel motion counted while in contact that may be slip
+            (:class:`~localizer.filter.motion.ContactSlip`; 0 turns it off).
     """
 
     noise: OdometryNoise = OdometryNoise()
@@ -69,12 +106,27 @@ class FilterConfig:
     lost_position_sigma: float = 1.0  # m
     lost_heading_sigma: float = math.radians(20.0)  # rad
     lost_rejected_frames: int = 12
+    lost_unexplained_frames: int = 6
+    unexplained_radius: float = 0.5  # m
+    nis_window: int = 10
+    nis_probability: float = 0.9999  # dimensionless
+    contact_slip: float = 1.0  # dimensionless
 
     def __post_init__(self) -> None:
         check_numbers("FilterConfig.measurement_floor", self.measurement_floor, 3, low=0.0)
         for name, unit in (("lost_position_sigma", "m"), ("lost_heading_sigma", "rad")):
             check_number(f"FilterConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
-        check_number("FilterConfig.lost_rejected_frames", self.lost_rejected_frames, low=1, integer=True)
+        for name in ("lost_rejected_frames", "lost_unexplained_frames", "nis_window"):
+            check_number(f"FilterConfig.{name}", getattr(self, name), low=1, integer=True)
+        check_number("FilterConfig.nis_probability", self.nis_probability, low=0.0, high=1.0, low_open=True,
+                     high_open=True)
+        check_number("FilterConfig.contact_slip", self.contact_slip, low=0.0)
+        check_number("FilterConfig.unexplained_radius", self.unexplained_radius, low=0.0, low_open=True, unit="m")
+
+    @property
+    def nis_limit(self) -> float:
+        """The mean NIS over :attr:`nis_window` updates above which the filter is lost."""
+        return gate_threshold(self.nis_probability, 3 * self.nis_window) / self.nis_window
 
 
 @dataclass(frozen=True)
@@ -89,6 +141,7 @@ class FrameResult:
         lost: whether the filter is lost after the frame.
         relocalized: whether this frame confirmed a re-localization.
         hypotheses: live re-localization hypotheses after the frame.
+        status: the filter's status after the frame (:data:`STATUSES`).
     """
 
     time: float
@@ -98,6 +151,7 @@ class FrameResult:
     lost: bool
     relocalized: bool
     hypotheses: int
+    status: str = TRACKING
 
 
 class PoseEKF:
@@ -110,10 +164,13 @@ class PoseEKF:
         mount: the camera mount.
         config: settings.
         t0: time of the initial pose (s).
+        free_space: optional ``(x m, y m) -> bool``, whether the vehicle's reference point can be
+            there (inside the map, not inside a wall or an obstacle): an estimate outside it
+            means lost, and no re-localization hypothesis is kept outside it.
     """
 
     def __init__(self, x0, P0, targets: TargetMap, mount: CameraMount,
-                 config: FilterConfig = FilterConfig(), t0: float = 0.0) -> None:
+                 config: FilterConfig = FilterConfig(), t0: float = 0.0, free_space=None) -> None:
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         P0 = np.asarray(P0, dtype=float)
         if x0.shape != (3,) or not np.isfinite(x0).all():
@@ -127,12 +184,21 @@ class PoseEKF:
         self.time = float(t0)  # s, time of the filter state
         self._pending: deque = deque()  # (t, ds, dθ) after self.time
         self._now = OdometryAccumulator(config.noise)
-        self.relocalizer = Relocalizer(targets, mount, config.gate, config.relocalize)
+        self._slip = ContactSlip(config.contact_slip, config.noise.track_width)
+        self.free_space = free_space
+        self.relocalizer = Relocalizer(targets, mount, config.gate, config.relocalize, free_space=free_space)
         self.lost = False
-        self.rejected_frames = 0  # consecutive frames with observations, none accepted
+        self.lost_reason: str | None = None  # why the filter is lost (None while tracking)
+        self.rejected_frames = 0  # consecutive frames with a target predicted in view, none accepted
+        self.unexplained_frames = 0  # the longest line-up of unexplained detections (frames)
+        # unexplained detections since the last accepted one: (x m, y m, polarity, support frames)
+        self._unexplained: list[tuple[float, float, str | None, int]] = []
         self.rejections = 0  # observations not accepted, total
         self.relocalizations = 0
         self.lost_events = 0
+        self.last_fix = float(t0)  # s: the last accepted update (or confirmed re-localization)
+        self._nis = deque(maxlen=config.nis_window)  # the latest accepted updates' NIS
+        self._nis_limit = config.nis_limit
         self._floor = np.diag(np.asarray(config.measurement_floor, dtype=float) ** 2)
 
     # ------------------------------------------------------------ state
@@ -145,6 +211,23 @@ class PoseEKF:
     def P(self) -> np.ndarray:
         """(3, 3) filter covariance at :attr:`time`."""
         return self.kf.P.copy()
+
+    @property
+    def status(self) -> str:
+        """``tracking``, ``lost`` or ``relocalizing`` (:data:`STATUSES`)."""
+        if not self.lost:
+            return TRACKING
+        return RELOCALIZING if self.relocalizer.hypotheses else LOST
+
+    def since_fix(self, t: float) -> float:
+        """Seconds from the last accepted update (or confirmed re-localization) to ``t`` (s)."""
+        return max(float(t) - self.last_fix, 0.0)
+
+    def position_sigma(self) -> float:
+        """The largest standard deviation of the position (m): √ of the larger eigenvalue of
+        the current covariance's P_xy."""
+        P = self.covariance()
+        return _largest_sigma(P.item(0, 0), P.item(1, 0), P.item(1, 1))
 
     def pose(self) -> np.ndarray:
         """(3,) current pose estimate: the state composed with the queued odometry (θ wrapped)."""
@@ -165,12 +248,15 @@ class PoseEKF:
         return F @ self.kf.P @ F.T + G @ now.Q @ G.T
 
     # ------------------------------------------------------------ predict
-    def add_odometry(self, t: float, ds: float, dtheta: float) -> None:
-        """Queue the odometry increment (Δs m, Δθ rad) that ended at time ``t`` (s)."""
+    def add_odometry(self, t: float, ds: float, dtheta: float, in_contact: bool = False) -> None:
+        """Queue the odometry increment (Δs m, Δθ rad) that ended at time ``t`` (s);
+        ``in_contact``: the vehicle touched a wall or obstacle during it (its wheels may have
+        slipped: :attr:`FilterConfig.contact_slip`)."""
         if self._pending and t < self._pending[-1][0]:
             raise ValueError(f"odometry time stamps must not decrease: {t!r} after {self._pending[-1][0]!r}")
-        self._pending.append((float(t), float(ds), float(dtheta)))
-        self._now.add(ds, dtheta)
+        slip = self._slip.extra(ds, dtheta, in_contact)
+        self._pending.append((float(t), float(ds), float(dtheta), slip))
+        self._now.add(ds, dtheta, slip)
 
     def flush(self, t: float) -> None:
         """Predict the filter state to time ``t`` (s) with the queued increments up to ``t``."""
@@ -178,13 +264,11 @@ class PoseEKF:
             raise ValueError(f"cannot predict back in time: {t!r} < {self.time!r} (frames out of order?)")
         acc = OdometryAccumulator(self.config.noise)
         while self._pending and self._pending[0][0] <= t + 1e-9:
-            _, ds, dth = self._pending.popleft()
-            acc.add(ds, dth)
+            _, ds, dth, slip = self._pending.popleft()
+            acc.add(ds, dth, slip)
         if acc.steps:
             self._predict(acc.u, acc.Q)
-            self._now.reset()
-            for _, ds, dth in self._pending:
-                self._now.add(ds, dth)
+            self._refresh_now()
         self.time = float(t)
         self._check_lost()
 
@@ -197,17 +281,41 @@ class PoseEKF:
     def _check_lost(self) -> None:
         if self.lost:
             return
+        cfg = self.config
         P = self.kf.P
-        # the larger eigenvalue of P_xy (its lower triangle, as numpy's eigvalsh reads it), closed form
-        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
-        pos_var = 0.5 * (a + d) + math.hypot(0.5 * (a - d), b)
-        pos_sigma = math.sqrt(max(pos_var, 0.0))
-        if (pos_sigma > self.config.lost_position_sigma
-                or math.sqrt(max(P.item(2, 2), 0.0)) > self.config.lost_heading_sigma
-                or self.rejected_frames >= self.config.lost_rejected_frames):
-            self.lost = True
-            self.lost_events += 1
-            self.relocalizer.reset()
+        pos_sigma = _largest_sigma(P.item(0, 0), P.item(1, 0), P.item(1, 1))
+        heading_sigma = math.sqrt(max(P.item(2, 2), 0.0))
+        reason = None
+        if pos_sigma > cfg.lost_position_sigma:
+            reason = f"position sigma {pos_sigma:.2f} m > {cfg.lost_position_sigma:g} m"
+        elif heading_sigma > cfg.lost_heading_sigma:
+            reason = (f"heading sigma {math.degrees(heading_sigma):.1f} deg > "
+                      f"{math.degrees(cfg.lost_heading_sigma):g} deg")
+        elif self.rejected_frames >= cfg.lost_rejected_frames:
+            reason = (f"{self.rejected_frames} frames in a row with a target predicted in view "
+                      "and every detection refused")
+        elif self.unexplained_frames >= cfg.lost_unexplained_frames:
+            reason = (f"detections in {self.unexplained_frames} frames line up where the estimate "
+                      "predicts no target")
+        elif len(self._nis) == cfg.nis_window and sum(self._nis) / cfg.nis_window > self._nis_limit:
+            reason = (f"mean NIS {sum(self._nis) / cfg.nis_window:.1f} over the last {cfg.nis_window} "
+                      f"updates > {self._nis_limit:.1f}")
+        elif self.free_space is not None:
+            x, y = self.kf.x.item(0), self.kf.x.item(1)
+            if not self.free_space(x, y):
+                reason = f"estimate ({x:.2f}, {y:.2f}) m is not in free space (in a wall or obstacle, or off the map)"
+        if reason is not None:
+            self.declare_lost(reason)
+
+    def declare_lost(self, reason: str) -> None:
+        """Mark the filter lost (``reason``: why, for :attr:`lost_reason`); re-localization starts
+        from nothing with the next frame's detections. A no-op if already lost."""
+        if self.lost:
+            return
+        self.lost = True
+        self.lost_reason = str(reason)
+        self.lost_events += 1
+        self.relocalizer.reset()
 
     # ------------------------------------------------------------ update
     def measurement(self, obs) -> Measurement:
@@ -237,47 +345,79 @@ class PoseEKF:
             self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         accepted = len(nis)
         # a frame counts against the filter when a target was predicted in view and none of the
-        # observations fitted; observations with no candidate at all (false detections away from
-        # every target) say nothing about the pose
+        # observations fitted (rejected), or when there were detections and no target of their
+        # polarity is predicted in view at all (unexplained: the estimate is elsewhere, or they
+        # are false detections, which do not come several frames in a row)
         if accepted:
             self.rejected_frames = 0
+            self.unexplained_frames = 0
+            self._unexplained.clear()
+            self.last_fix = float(t_capture)
+            self._nis.extend(nis)
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
+        if not accepted:
+            lone = [ms[a.observation] for a in assoc if a.candidates == 0]
+            if lone:
+                self._line_up(lone)
         # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
         return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, False,
-                           len(self.relocalizer.hypotheses))
+                           len(self.relocalizer.hypotheses), self.status)
+
+    def _line_up(self, ms: list[Measurement]) -> None:
+        """Place a frame's unexplained detections in the map from the estimate and count how
+        many frames in a row each lines up with (:attr:`unexplained_frames`, the longest)."""
+        lens, phi = self.mount.camera_pose(self.kf.x.reshape(-1))
+        r2 = self.config.unexplained_radius ** 2
+        past = self._unexplained
+        now = []
+        for m in ms:
+            d, beta = float(m.z[0]), float(m.z[1])
+            px, py = lens[0] + d * math.cos(phi - beta), lens[1] + d * math.sin(phi - beta)
+            support = 1 + max((n for (qx, qy, pol, n) in past
+                               if pol == m.polarity and (qx - px) ** 2 + (qy - py) ** 2 <= r2), default=0)
+            now.append((px, py, m.polarity, support))
+            self.unexplained_frames = max(self.unexplained_frames, support)
+        # keep the strongest entry near each place; a bounded list (false detections scatter)
+        self._unexplained = (now + past)[:64]
 
     def _refresh_now(self) -> None:
         self._now.reset()
-        for _, ds, dth in self._pending:
-            self._now.add(ds, dth)
+        for _, ds, dth, slip in self._pending:
+            self._now.add(ds, dth, slip)
 
     def _relocalize(self, t: float, ms: list[Measurement]) -> FrameResult:
         reloc = self.relocalizer
-        confirmed = None
-        if ms:
-            if not reloc.hypotheses:
-                prior = Hypothesis(self.x, self.P)
-                reloc.seed(ms, prior)
-            else:
-                confirmed = reloc.update(ms)
+        confirmed = reloc.process(ms) if ms else None
         self.rejections += len(ms)
         if confirmed is not None:
             self.kf.x = confirmed.x.reshape(3, 1).copy()
+            self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
             self.kf.P = confirmed.P.copy()
-            self.lost = False
-            self.rejected_frames = 0
+            self._recovered(t)
             self.relocalizations += 1
-            reloc.reset()
             self._refresh_now()
         return FrameResult(t, tuple(), np.zeros(0), 0, self.lost, confirmed is not None,
-                           len(reloc.hypotheses))
+                           len(reloc.hypotheses), self.status)
+
+    def _recovered(self, t: float) -> None:
+        self.lost = False
+        self.lost_reason = None
+        self.rejected_frames = 0
+        self.unexplained_frames = 0
+        self._unexplained.clear()
+        self._nis.clear()
+        self.last_fix = float(t)
+        self.relocalizer.reset()
 
     def reset(self, x, P) -> None:
         """Set the filter state to ``x`` (3,), ``P`` (3, 3) at the current filter time; not lost."""
         self.kf.x = np.asarray(x, dtype=float).reshape(3, 1).copy()
         self.kf.P = np.asarray(P, dtype=float).copy()
-        self.lost = False
-        self.rejected_frames = 0
-        self.relocalizer.reset()
+        self._recovered(self.time)
+
+
+def _largest_sigma(a: float, b: float, d: float) -> float:
+    """√ of the larger eigenvalue of the symmetric 2 x 2 ``[[a, b], [b, d]]`` (closed form)."""
+    return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))

@@ -48,7 +48,7 @@ import numpy as np
 
 from localizer.numeric import check_number
 
-__all__ = ["OdometryAccumulator", "OdometryNoise", "arc_motion", "compose", "compose_jacobians"]
+__all__ = ["ContactSlip", "OdometryAccumulator", "OdometryNoise", "arc_motion", "compose", "compose_jacobians"]
 
 
 @dataclass(frozen=True)
@@ -159,8 +159,11 @@ class OdometryAccumulator:
         a, b, c, d, e, f = self.q
         return np.array([a, b, c, b, d, e, c, e, f]).reshape(3, 3)
 
-    def add(self, ds: float, dtheta: float) -> None:
+    def add(self, ds: float, dtheta: float, slip=None) -> None:
         """Append one increment (Δs m, Δθ rad): u ← u ⊕ m(Δs, Δθ), Q ← F Q Fᵀ + G J Σ Jᵀ Gᵀ.
+
+        ``slip``: ``None``, or the extra ``(var Δs m², cov(Δs, Δθ) m·rad, var Δθ rad²)`` of wheel
+        slip in this increment (:meth:`ContactSlip.extra`), added to Σ.
 
         ``J = ∂m/∂(Δs, Δθ) ≈ [[cos(Δθ/2), -Δs/2 sin(Δθ/2)], [sin(Δθ/2), Δs/2 cos(Δθ/2)], [0, 1]]``
         (the sinc factor's derivative is dropped: Δθ per control step is small).
@@ -202,6 +205,8 @@ class OdometryAccumulator:
         cst = k2 * (s_r - s_l) / (2.0 * bw)
         infl = nz.inflation
         vs, cst, vt = infl * var_s, infl * cst, infl * var_t
+        if slip is not None:
+            vs, cst, vt = vs + slip[0], cst + slip[1], vt + slip[2]
         # J rows in the step frame: jx = (ch, -ds/2 sh), jy = (sh, ds/2 ch), jphi = (0, 1)
         # rotate rows by the accumulated heading (G)
         gx0, gx1 = c * ch - s * sh, -0.5 * ds * (c * sh + s * ch)
@@ -218,3 +223,52 @@ class OdometryAccumulator:
         self.uphi += mphi
         self.steps += 1
         self.distance += adS
+
+
+class ContactSlip:
+    r"""Wheel slip while the vehicle touches a wall or obstacle: extra odometry noise.
+
+    Pushing against something, the wheels spin and the encoders count motion the vehicle
+    never made (the simulator's ``slip_in_contact``; a real AGV knows its bumper state). The
+    error is not white: over one contact it grows with the wheel motion counted since the
+    contact began. Each wheel's slip error is taken as ``σ_w = k D_w``, ``D_w`` the wheel's
+    counted arc length (m) since the contact began and ``k`` :attr:`fraction` (1: the whole of
+    it may be slip). Per increment the variance added is the growth of that bias's variance,
+    so a contact's increments sum to exactly ``(k D_w)²`` per wheel; for the pose increment,
+    as the wheel noise (:class:`OdometryNoise`)::
+
+        var Δs += (v_L + v_R) / 4,  var Δθ += (v_L + v_R) / b²,  cov(Δs, Δθ) += (v_R - v_L) / (2 b)
+        v_w = k² ((D_w + |s_w|)² - D_w²)
+
+    Out of contact nothing is added and the contact's arc lengths start again from zero.
+
+    Args:
+        fraction: ``k``, the share of the counted wheel motion that may be slip while in
+            contact (dimensionless, >= 0; 0 turns the model off).
+        track_width: the wheelbase ``b`` (m).
+    """
+
+    __slots__ = ("fraction", "track_width", "arc_left", "arc_right")
+
+    def __init__(self, fraction: float, track_width: float) -> None:
+        check_number("ContactSlip.fraction", fraction, low=0.0)
+        check_number("ContactSlip.track_width", track_width, low=0.0, low_open=True, unit="m")
+        self.fraction = float(fraction)
+        self.track_width = float(track_width)
+        self.arc_left = self.arc_right = 0.0  # m counted since the contact began
+
+    def extra(self, ds: float, dtheta: float, in_contact: bool):
+        """The slip noise ``(var Δs m², cov m·rad, var Δθ rad²)`` of the increment (Δs m, Δθ rad),
+        or ``None`` when not in contact (or the model is off)."""
+        if not in_contact or self.fraction == 0.0:
+            self.arc_left = self.arc_right = 0.0
+            return None
+        b = self.track_width
+        s_l = abs(ds - 0.5 * b * dtheta)
+        s_r = abs(ds + 0.5 * b * dtheta)
+        k2 = self.fraction * self.fraction
+        dl, dr = self.arc_left, self.arc_right
+        v_l = k2 * ((dl + s_l) ** 2 - dl * dl)
+        v_r = k2 * ((dr + s_r) ** 2 - dr * dr)
+        self.arc_left, self.arc_right = dl + s_l, dr + s_r
+        return (v_l + v_r) / 4.0, (v_r - v_l) / (2.0 * b), (v_l + v_r) / (b * b)

@@ -1,18 +1,29 @@
-r"""Re-localization when the filter is lost.
+r"""Global re-localization when the filter is lost (the kidnapped robot).
 
-Every observation of a target, paired with every map target of the same
-polarity, gives a full pose (:func:`~localizer.filter.measurement.pose_from_measurement`)
-with covariance ``J R Jᵀ`` (J its Jacobian w.r.t. (d, β, α)). Each pairing is
-a *hypothesis*, a small EKF of its own (a filterpy EKF,
-:class:`~localizer.filter.update.PoseKF`), propagated by the same odometry as the
-main filter and updated through the same filterpy update
-(:mod:`localizer.filter.update`). Targets look alike, so later observations of the *same* target
-fit every hypothesis equally well; only a second, different target tells them
-apart. A hypothesis is therefore **confirmed** when it has matched
-``confirm_targets`` distinct targets and no other live hypothesis has matched
-as many. A hypothesis whose observations fail to match any target
-``max_misses`` times is dropped (a single false detection does not kill the
-right one). Hypotheses closer than ``merge_distance`` / ``merge_heading`` are merged.
+Every observation of a target, paired with every map target of the same polarity, gives a
+full pose (:func:`~localizer.filter.measurement.pose_from_measurement`) with covariance
+``J R Jᵀ`` (J its Jacobian w.r.t. (d, β, α)). Each pairing is a *hypothesis*, a small EKF of
+its own (a filterpy EKF, :class:`~localizer.filter.update.PoseKF`), propagated by the same
+odometry as the main filter and updated through the same filterpy update
+(:mod:`localizer.filter.update`). Nothing of the lost filter's own estimate is used.
+
+Each frame (:meth:`Relocalizer.process`): every live hypothesis associates the frame's
+observations (the main filter's χ² gate) and is updated with those it accepts; an
+observation no hypothesis accepted seeds new hypotheses (all its pairings), so the right
+pose is found even when the first frames after the vehicle was lost were misleading.
+Hypotheses outside the map's free space are dropped, as are those whose observations failed
+to match ``max_misses`` times (a single false detection does not kill the right one), and
+hypotheses closer than ``merge_distance`` / ``merge_heading`` are merged. At most
+``max_hypotheses`` live (the best supported, then the newest), which bounds the cost per
+frame (about ``max_hypotheses`` associations).
+
+Targets look alike, so later observations of the *same* target fit every hypothesis seeded
+from it equally well; only a different target tells them apart. A hypothesis is
+**confirmed** when it has matched ``confirm_targets`` distinct targets and every other live
+hypothesis has matched fewer. On a map whose targets are laid out symmetrically (two
+places from which the same targets look the same), two hypotheses keep matching as many
+targets as each other: the filter then stays ``relocalizing``, never picks one, until a
+target that breaks the symmetry is seen.
 """
 from __future__ import annotations
 
@@ -38,7 +49,8 @@ class RelocalizeConfig:
 
     Attributes:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
-        max_misses: unmatched observations before a hypothesis is dropped.
+        max_misses: observations refused since the last frame a hypothesis explained whole,
+            before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
         merge_distance: hypotheses closer than this (m) ...
         merge_heading: ... and this (rad) are merged.
@@ -47,7 +59,7 @@ class RelocalizeConfig:
 
     confirm_targets: int = 2
     max_misses: int = 3
-    max_hypotheses: int = 256
+    max_hypotheses: int = 96
     merge_distance: float = 0.3  # m
     merge_heading: float = math.radians(5.0)  # rad
     bounds: tuple[float, float, float, float] | None = None  # m
@@ -69,10 +81,11 @@ class Hypothesis:
         misses: observations it failed to match.
     """
 
-    def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0) -> None:
+    def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0) -> None:
         self.kf = PoseKF(x, P)
         self.matched = set(matched)
         self.misses = misses
+        self.born = born  # creation order (newer is larger)
 
     @property
     def x(self) -> np.ndarray:
@@ -106,12 +119,14 @@ class Relocalizer:
     """
 
     def __init__(self, targets: TargetMap, mount: CameraMount, gate: GateConfig = GateConfig(),
-                 config: RelocalizeConfig = RelocalizeConfig()) -> None:
+                 config: RelocalizeConfig = RelocalizeConfig(), free_space=None) -> None:
         self.targets = targets
         self.mount = mount
         self.gate = gate
         self.config = config
+        self.free_space = free_space  # (x m, y m) -> bool, or None
         self.hypotheses: list[Hypothesis] = []
+        self._born = 0  # hypotheses made so far (their age order)
 
     def reset(self) -> None:
         """Drop every hypothesis."""
@@ -121,6 +136,12 @@ class Relocalizer:
         """Move every hypothesis by the relative motion u (3,) with covariance Q (3, 3)."""
         for h in self.hypotheses:
             predict_pose(h.kf, u, Q)
+
+    def _free(self, x) -> bool:
+        b = self.config.bounds
+        if b is not None and not (b[0] <= x[0] <= b[2] and b[1] <= x[1] <= b[3]):
+            return False
+        return self.free_space is None or bool(self.free_space(float(x[0]), float(x[1])))
 
     def seed(self, measurements: Sequence[Measurement], prior: Hypothesis | None = None) -> int:
         """Add hypotheses from every (observation, same-polarity target) pairing; returns how many."""
@@ -136,13 +157,13 @@ class Relocalizer:
                 if abs(gamma) > self.gate.view.max_incidence:
                     continue
                 x = pose_from_measurement(m.z, self.targets.positions[j], self.targets.yaws[j], self.mount)
-                b = self.config.bounds
-                if b is not None and not (b[0] <= x[0] <= b[2] and b[1] <= x[1] <= b[3]):
+                if not self._free(x):
                     continue
                 J = pose_from_measurement_jacobian(m.z, self.targets.positions[j], self.targets.yaws[j],
                                                    self.mount)
                 P = J @ m.R @ J.T + np.diag([1e-6, 1e-6, 1e-8])
-                self.hypotheses.append(Hypothesis(x, P, {self.targets.ids[j]}))
+                self._born += 1
+                self.hypotheses.append(Hypothesis(x, P, {self.targets.ids[j]}, born=self._born))
                 added += 1
         self._merge()
         return added
@@ -150,7 +171,7 @@ class Relocalizer:
     def _merge(self) -> None:
         kept: list[Hypothesis] = []
         cfg = self.config
-        for h in sorted(self.hypotheses, key=lambda h: (-len(h.matched), h.misses)):
+        for h in sorted(self.hypotheses, key=lambda h: (-len(h.matched), h.misses, -h.born)):
             dup = False
             for k in kept:
                 if (np.hypot(*(h.x[:2] - k.x[:2])) < cfg.merge_distance
@@ -164,23 +185,50 @@ class Relocalizer:
 
     def update(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
         """Test every hypothesis against a frame; returns the confirmed one, if any."""
+        self._test(measurements)
+        return self._confirmed()
+
+    def process(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
+        """One frame while lost (module docstring): test the live hypotheses, seed new ones
+        from the observations none of them accepted; returns the confirmed one, if any."""
         if not measurements:
             return None
+        explained = self._test(measurements)
+        fresh = [m for k, m in enumerate(measurements) if k not in explained]
+        if fresh:
+            self.seed(fresh)
+        return self._confirmed()
+
+    def _test(self, measurements: Sequence[Measurement]) -> set[int]:
+        """Associate and update every live hypothesis; drop the dead; the observations some
+        hypothesis accepted."""
+        explained: set[int] = set()
+        if not measurements:
+            return explained
         alive: list[Hypothesis] = []
         for h in self.hypotheses:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self.gate)
+            refused = 0
             for a in assoc:
                 if a.status != ACCEPTED:
-                    h.misses += 1
+                    refused += 1
                     continue
                 m = measurements[a.observation]
                 update_pose(h.kf, m, self.targets.positions[a.target], self.targets.yaws[a.target], self.mount)
                 h.matched.add(a.target_id)
-            if h.misses < self.config.max_misses:
+                explained.add(a.observation)
+            # misses: observations refused since the last frame it explained whole
+            h.misses = h.misses + refused if refused else 0
+            if h.misses < self.config.max_misses and self._free(h.x):
                 alive.append(h)
         self.hypotheses = alive
         self._merge()
-        if not alive:
+        return explained
+
+    def _confirmed(self) -> Hypothesis | None:
+        """The hypothesis that matched ``confirm_targets`` distinct targets with every other
+        matching fewer, or None."""
+        if not self.hypotheses:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
