@@ -354,6 +354,7 @@ class PoseEKF:
             self._unexplained.clear()
             self.last_fix = float(t_capture)
             self._nis.extend(nis)
+            self._slip.restart()
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
         if not accepted:
@@ -408,6 +409,7 @@ class PoseEKF:
         self.unexplained_frames = 0
         self._unexplained.clear()
         self._nis.clear()
+        self._slip.restart()
         self.last_fix = float(t)
         self.relocalizer.reset()
 

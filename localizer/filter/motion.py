@@ -240,7 +240,9 @@ class ContactSlip:
         var Δs += (v_L + v_R) / 4,  var Δθ += (v_L + v_R) / b²,  cov(Δs, Δθ) += (v_R - v_L) / (2 b)
         v_w = k² ((D_w + |s_w|)² - D_w²)
 
-    Out of contact nothing is added and the contact's arc lengths start again from zero.
+    Out of contact nothing is added and the contact's arc lengths start again from zero; they
+    also start again at a fix (:meth:`restart`: the error up to the fix is measured, what slips
+    after it is at most the motion counted after it).
 
     Args:
         fraction: ``k``, the share of the counted wheel motion that may be slip while in
@@ -256,6 +258,10 @@ class ContactSlip:
         self.fraction = float(fraction)
         self.track_width = float(track_width)
         self.arc_left = self.arc_right = 0.0  # m counted since the contact began
+
+    def restart(self) -> None:
+        """Count the contact's wheel motion from zero again (after a fix)."""
+        self.arc_left = self.arc_right = 0.0
 
     def extra(self, ds: float, dtheta: float, in_contact: bool):
         """The slip noise ``(var Δs m², cov m·rad, var Δθ rad²)`` of the increment (Δs m, Δθ rad),

@@ -13,14 +13,16 @@ observation no hypothesis accepted seeds new hypotheses (all its pairings), so t
 pose is found even when the first frames after the vehicle was lost were misleading.
 Hypotheses outside the map's free space are dropped, as are those whose observations failed
 to match ``max_misses`` times (a single false detection does not kill the right one), and
-hypotheses closer than ``merge_distance`` / ``merge_heading`` are merged. At most
+of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
+is kept. A match counts as evidence only while the hypothesis is precise (position σ within
+``confirm_sigma``): a loose gate accepts anything. At most
 ``max_hypotheses`` live (the best supported, then the newest), which bounds the cost per
 frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
 **confirmed** when it has matched ``confirm_targets`` distinct targets and every other live
-hypothesis has matched fewer. On a map whose targets are laid out symmetrically (two
+hypothesis has matched fewer, and its position σ is within ``confirm_sigma``. On a map whose targets are laid out symmetrically (two
 places from which the same targets look the same), two hypotheses keep matching as many
 targets as each other: the filter then stays ``relocalizing``, never picks one, until a
 target that breaks the symmetry is seen.
@@ -53,8 +55,12 @@ class RelocalizeConfig:
             before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
         merge_distance: hypotheses closer than this (m) ...
-        merge_heading: ... and this (rad) are merged.
+        merge_heading: ... and this (rad): only the better supported is kept.
         bounds: optional (xmin, ymin, xmax, ymax) (m) the vehicle must be inside.
+        max_sigma: a hypothesis whose position σ (m, largest) grows past this is dropped (its
+            gate would accept anything; while the wheels slip against a wall, fresh
+            observations seed precise ones again).
+        confirm_sigma: position σ (m) a hypothesis must be within to be confirmed.
     """
 
     confirm_targets: int = 2
@@ -63,12 +69,16 @@ class RelocalizeConfig:
     merge_distance: float = 0.3  # m
     merge_heading: float = math.radians(5.0)  # rad
     bounds: tuple[float, float, float, float] | None = None  # m
+    max_sigma: float = 1.0  # m
+    confirm_sigma: float = 0.25  # m
 
     def __post_init__(self) -> None:
         for name in ("confirm_targets", "max_misses", "max_hypotheses"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
+        for name in ("max_sigma", "confirm_sigma"):
+            check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit="m")
 
 
 class Hypothesis:
@@ -104,6 +114,12 @@ class Hypothesis:
     @P.setter
     def P(self, value) -> None:
         self.kf.P = np.asarray(value, dtype=float).copy()
+
+    def position_sigma(self) -> float:
+        """The largest standard deviation of the position (m)."""
+        P = self.kf.P
+        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+        return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
 
     def __repr__(self) -> str:
         return f"Hypothesis(x={self.x!r}, matched={sorted(self.matched)!r}, misses={self.misses})"
@@ -176,8 +192,7 @@ class Relocalizer:
             for k in kept:
                 if (np.hypot(*(h.x[:2] - k.x[:2])) < cfg.merge_distance
                         and abs(wrap_angle(float(h.x[2] - k.x[2]))) < cfg.merge_heading):
-                    k.matched |= h.matched
-                    dup = True
+                    dup = True  # the better supported one is kept as it is (no union of evidence)
                     break
             if not dup:
                 kept.append(h)
@@ -209,17 +224,21 @@ class Relocalizer:
         for h in self.hypotheses:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self.gate)
             refused = 0
+            # a match is evidence only when the gate was tight (a loose one accepts anything)
+            precise = h.position_sigma() <= self.config.confirm_sigma
             for a in assoc:
                 if a.status != ACCEPTED:
                     refused += 1
                     continue
                 m = measurements[a.observation]
                 update_pose(h.kf, m, self.targets.positions[a.target], self.targets.yaws[a.target], self.mount)
-                h.matched.add(a.target_id)
+                if precise:
+                    h.matched.add(a.target_id)
                 explained.add(a.observation)
             # misses: observations refused since the last frame it explained whole
             h.misses = h.misses + refused if refused else 0
-            if h.misses < self.config.max_misses and self._free(h.x):
+            if (h.misses < self.config.max_misses and h.position_sigma() <= self.config.max_sigma
+                    and self._free(h.x)):
                 alive.append(h)
         self.hypotheses = alive
         self._merge()
@@ -227,11 +246,12 @@ class Relocalizer:
 
     def _confirmed(self) -> Hypothesis | None:
         """The hypothesis that matched ``confirm_targets`` distinct targets with every other
-        matching fewer, or None."""
+        matching fewer, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
-        if best >= self.config.confirm_targets and len(top) == 1:
+        if (best >= self.config.confirm_targets and len(top) == 1
+                and top[0].position_sigma() <= self.config.confirm_sigma):
             return top[0]
         return None
