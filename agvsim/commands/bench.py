@@ -1,6 +1,6 @@
 """``agvsim bench TARGET``: performance benchmarks (results go to BENCHMARKS.md).
 
-Each benchmark lives in :mod:`agvsim.bench.<name>` and exposes
+Each benchmark lives in :mod:`agvsim.bench.<name>` (``-`` in a name is ``_`` in the module) and exposes
 ``add_arguments(parser)`` and ``run(args) -> dict`` (the JSON figures) and
 ``format_table(result) -> str`` for the human-readable report.
 """
@@ -17,6 +17,8 @@ BENCHMARKS: dict[str, str] = {
     "localizer": "localizer ms per frame, against ArUco+solvePnP and AprilTag 3",
     "env": "Gymnasium env steps per second, real-time factor and peak memory",
     "render": "camera frames: ms per 512x480 frame, raycaster and pyrender (EGL/llvmpipe) on the same poses",
+    "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes "
+                              "(issue 13)",
 }
 
 
@@ -46,9 +48,9 @@ def register(sub) -> None:
     bench_sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
     for name, help_text in BENCHMARKS.items():
         try:
-            module = importlib.import_module(f"agvsim.bench.{name}")
+            module = importlib.import_module(f"agvsim.bench.{name.replace('-', '_')}")
         except ModuleNotFoundError as exc:
-            if exc.name == f"agvsim.bench.{name}":
+            if exc.name == f"agvsim.bench.{name.replace('-', '_')}":
                 continue
             raise
         p = bench_sub.add_parser(name, help=help_text, description=help_text)

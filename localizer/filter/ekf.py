@@ -34,11 +34,12 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
   ``lost_heading_sigma``;
 * ``lost_rejected_frames`` frames in a row with a target predicted in view whose
   observations were all refused;
-* consistent detections that the estimate cannot explain: detections with no target of their
-  polarity predicted in view, placed in the map from the estimate, that fall within
-  ``unexplained_radius`` of one another over ``lost_unexplained_frames`` frames (one real
-  target seen from a wrong estimate stays put, as odometry moves the estimate with the
-  vehicle; false detections do not line up). The check that works far from the truth;
+* consistent detections that the estimate cannot explain: refused detections that misfit
+  grossly (no target of their polarity predicted in view, or the nearest candidate's D² above
+  ``misfit_d2``), placed in the map from the estimate, that fall within ``misfit_radius`` of
+  one another over ``lost_misfit_frames`` such frames in a row (one real target seen from a wrong estimate
+  stays put, as odometry moves the estimate with the vehicle; false detections do not line
+  up). The check that works far from the truth, and fast;
 * the estimate outside the map's free space (inside a wall or an obstacle, or outside the
   map), when the filter was given ``free_space``;
 * the mean NIS of the last ``nis_window`` accepted updates above the χ²(3 ``nis_window``)
@@ -46,7 +47,12 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
 * told so: :meth:`PoseEKF.declare_lost` (an unknown start pose).
 
 Then :class:`~localizer.filter.relocalize.Relocalizer` takes the frames until a hypothesis is
-confirmed (global re-localization from nothing: the main state plays no part in it).
+confirmed (global re-localization from nothing: the main state plays no part in it). While
+tracking, the filter keeps the frames since the last one with an accepted observation (at most
+``relocalize.replay_frames``), their measurements and the odometry between them; on becoming
+lost it replays them into the re-localization first, so the
+detections that were refused are the first evidence (a kidnapped vehicle has often seen two
+targets by the time it knows it is lost).
 """
 from __future__ import annotations
 
@@ -88,10 +94,11 @@ class FilterConfig:
         lost_heading_sigma: heading σ (rad) above which the filter is lost.
         lost_rejected_frames: frames in a row with observations and a target predicted in view,
             none accepted, before lost.
-        lost_unexplained_frames: frames whose unexplained detections line up (module
+        lost_misfit_frames: frames whose grossly misfitting detections line up (module
             docstring) before lost.
-        unexplained_radius: how close (m) two frames' unexplained detections, placed in the
-            map from the estimate, must be to line up.
+        misfit_d2: D² (dimensionless) above which a refused detection misfits grossly.
+        misfit_radius: how close (m) two frames' misfitting detections, placed in the map from
+            the estimate, must be to line up.
         nis_window: accepted updates whose mean NIS is watched.
         nis_probability: lost when that mean exceeds the χ²(3 ``nis_window``) quantile of this
             probability over ``nis_window``.
@@ -106,8 +113,9 @@ class FilterConfig:
     lost_position_sigma: float = 1.0  # m
     lost_heading_sigma: float = math.radians(20.0)  # rad
     lost_rejected_frames: int = 12
-    lost_unexplained_frames: int = 6
-    unexplained_radius: float = 0.5  # m
+    lost_misfit_frames: int = 4
+    misfit_d2: float = 100.0  # D², dimensionless
+    misfit_radius: float = 0.3  # m
     nis_window: int = 10
     nis_probability: float = 0.9999  # dimensionless
     contact_slip: float = 1.0  # dimensionless
@@ -116,12 +124,13 @@ class FilterConfig:
         check_numbers("FilterConfig.measurement_floor", self.measurement_floor, 3, low=0.0)
         for name, unit in (("lost_position_sigma", "m"), ("lost_heading_sigma", "rad")):
             check_number(f"FilterConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
-        for name in ("lost_rejected_frames", "lost_unexplained_frames", "nis_window"):
+        check_number("FilterConfig.misfit_d2", self.misfit_d2, low=0.0, low_open=True, unit="D²")
+        for name in ("lost_rejected_frames", "lost_misfit_frames", "nis_window"):
             check_number(f"FilterConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("FilterConfig.nis_probability", self.nis_probability, low=0.0, high=1.0, low_open=True,
                      high_open=True)
         check_number("FilterConfig.contact_slip", self.contact_slip, low=0.0)
-        check_number("FilterConfig.unexplained_radius", self.unexplained_radius, low=0.0, low_open=True, unit="m")
+        check_number("FilterConfig.misfit_radius", self.misfit_radius, low=0.0, low_open=True, unit="m")
 
     @property
     def nis_limit(self) -> float:
@@ -190,14 +199,18 @@ class PoseEKF:
         self.lost = False
         self.lost_reason: str | None = None  # why the filter is lost (None while tracking)
         self.rejected_frames = 0  # consecutive frames with a target predicted in view, none accepted
-        self.unexplained_frames = 0  # the longest line-up of unexplained detections (frames)
-        # unexplained detections since the last accepted one: (x m, y m, polarity, support frames)
-        self._unexplained: list[tuple[float, float, str | None, int]] = []
+        self.misfit_frames = 0  # the longest line-up of grossly misfitting detections (frames)
+        # misfitting detections since the last accepted one: (x m, y m, polarity, support frames)
+        self._misfits: list[tuple[float, float, str | None, int, int]] = []  # ..., frame number
+        self._misfit_count = 0  # frames with misfitting detections so far
         self.rejections = 0  # observations not accepted, total
         self.relocalizations = 0
         self.lost_events = 0
         self.last_fix = float(t0)  # s: the last accepted update (or confirmed re-localization)
         self._nis = deque(maxlen=config.nis_window)  # the latest accepted updates' NIS
+        # while tracking: [u (3,), Q (3, 3), measurements] per flush / frame, for the replay
+        self._history: deque = deque(maxlen=config.relocalize.replay_frames)
+        self._flush_entry = None  # the history entry the last flush made
         self._nis_limit = config.nis_limit
         self._floor = np.diag(np.asarray(config.measurement_floor, dtype=float) ** 2)
 
@@ -263,12 +276,16 @@ class PoseEKF:
         if t < self.time - 1e-9:
             raise ValueError(f"cannot predict back in time: {t!r} < {self.time!r} (frames out of order?)")
         acc = OdometryAccumulator(self.config.noise)
+        self._flush_entry = None
         while self._pending and self._pending[0][0] <= t + 1e-9:
             _, ds, dth, slip = self._pending.popleft()
             acc.add(ds, dth, slip)
         if acc.steps:
             self._predict(acc.u, acc.Q)
             self._refresh_now()
+            if not self.lost:
+                self._flush_entry = [acc.u, acc.Q, ()]
+                self._history.append(self._flush_entry)
         self.time = float(t)
         self._check_lost()
 
@@ -294,9 +311,9 @@ class PoseEKF:
         elif self.rejected_frames >= cfg.lost_rejected_frames:
             reason = (f"{self.rejected_frames} frames in a row with a target predicted in view "
                       "and every detection refused")
-        elif self.unexplained_frames >= cfg.lost_unexplained_frames:
-            reason = (f"detections in {self.unexplained_frames} frames line up where the estimate "
-                      "predicts no target")
+        elif self.misfit_frames >= cfg.lost_misfit_frames:
+            reason = (f"detections in {self.misfit_frames} frames line up where the estimate "
+                      "predicts no target that fits them")
         elif len(self._nis) == cfg.nis_window and sum(self._nis) / cfg.nis_window > self._nis_limit:
             reason = (f"mean NIS {sum(self._nis) / cfg.nis_window:.1f} over the last {cfg.nis_window} "
                       f"updates > {self._nis_limit:.1f}")
@@ -315,7 +332,13 @@ class PoseEKF:
         self.lost = True
         self.lost_reason = str(reason)
         self.lost_events += 1
-        self.relocalizer.reset()
+        reloc = self.relocalizer
+        reloc.reset()
+        for u, Q, ms in self._history:  # the recent frames first (module docstring)
+            reloc.predict(u, Q)
+            if ms:
+                reloc.process(ms)
+        self._history.clear()
 
     # ------------------------------------------------------------ update
     def measurement(self, obs) -> Measurement:
@@ -333,6 +356,11 @@ class PoseEKF:
         ms = [self.measurement(o) for o in observations]
         if self.lost:
             return self._relocalize(t_capture, ms)
+        if ms:  # the frame's measurements join the motion this flush predicted (if any)
+            if self._flush_entry is not None and self._history and self._history[-1] is self._flush_entry:
+                self._flush_entry[2] = ms
+            else:
+                self._history.append([np.zeros(3), np.zeros((3, 3)), ms])
         assoc = associate(self.kf.x, self.kf.P, ms, self.targets, self.mount, self.config.gate)
         nis = []
         for a in assoc:
@@ -350,38 +378,47 @@ class PoseEKF:
         # are false detections, which do not come several frames in a row)
         if accepted:
             self.rejected_frames = 0
-            self.unexplained_frames = 0
-            self._unexplained.clear()
+            self.misfit_frames = 0
+            self._misfits.clear()
+            self._history.clear()  # the replay starts after the last frame that fitted
             self.last_fix = float(t_capture)
             self._nis.extend(nis)
             self._slip.restart()
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
         if not accepted:
-            lone = [ms[a.observation] for a in assoc if a.candidates == 0]
-            if lone:
-                self._line_up(lone)
+            gross = [ms[a.observation] for a in assoc if a.d2 > self.config.misfit_d2]
+            if gross:
+                self._line_up(gross)
         # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
-        return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, False,
+        relocalized = False
+        if self.lost:  # the replay may already have found the vehicle
+            confirmed = self.relocalizer.confirmed()
+            if confirmed is not None:
+                self._adopt(confirmed, t_capture)
+                relocalized = True
+        return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, relocalized,
                            len(self.relocalizer.hypotheses), self.status)
 
     def _line_up(self, ms: list[Measurement]) -> None:
-        """Place a frame's unexplained detections in the map from the estimate and count how
-        many frames in a row each lines up with (:attr:`unexplained_frames`, the longest)."""
+        """Place a frame's grossly misfitting detections in the map from the estimate and count
+        over how many such frames in a row (one skipped allowed) each lines up
+        (:attr:`misfit_frames`, the longest)."""
         lens, phi = self.mount.camera_pose(self.kf.x.reshape(-1))
-        r2 = self.config.unexplained_radius ** 2
-        past = self._unexplained
+        r2 = self.config.misfit_radius ** 2
+        self._misfit_count += 1
+        k = self._misfit_count
+        past = [e for e in self._misfits if e[4] >= k - 2]  # the two frames before this one
         now = []
         for m in ms:
             d, beta = float(m.z[0]), float(m.z[1])
             px, py = lens[0] + d * math.cos(phi - beta), lens[1] + d * math.sin(phi - beta)
-            support = 1 + max((n for (qx, qy, pol, n) in past
+            support = 1 + max((n for (qx, qy, pol, n, _) in past
                                if pol == m.polarity and (qx - px) ** 2 + (qy - py) ** 2 <= r2), default=0)
-            now.append((px, py, m.polarity, support))
-            self.unexplained_frames = max(self.unexplained_frames, support)
-        # keep the strongest entry near each place; a bounded list (false detections scatter)
-        self._unexplained = (now + past)[:64]
+            now.append((px, py, m.polarity, support, k))
+            self.misfit_frames = max(self.misfit_frames, support)
+        self._misfits = now + past
 
     def _refresh_now(self) -> None:
         self._now.reset()
@@ -393,22 +430,27 @@ class PoseEKF:
         confirmed = reloc.process(ms) if ms else None
         self.rejections += len(ms)
         if confirmed is not None:
-            self.kf.x = confirmed.x.reshape(3, 1).copy()
-            self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
-            self.kf.P = confirmed.P.copy()
-            self._recovered(t)
-            self.relocalizations += 1
-            self._refresh_now()
+            self._adopt(confirmed, t)
         return FrameResult(t, tuple(), np.zeros(0), 0, self.lost, confirmed is not None,
                            len(reloc.hypotheses), self.status)
+
+    def _adopt(self, confirmed: Hypothesis, t: float) -> None:
+        """Take the confirmed hypothesis as the state (at the filter time ``t``)."""
+        self.kf.x = confirmed.x.reshape(3, 1).copy()
+        self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
+        self.kf.P = confirmed.P.copy()
+        self._recovered(t)
+        self.relocalizations += 1
+        self._refresh_now()
 
     def _recovered(self, t: float) -> None:
         self.lost = False
         self.lost_reason = None
         self.rejected_frames = 0
-        self.unexplained_frames = 0
-        self._unexplained.clear()
+        self.misfit_frames = 0
+        self._misfits.clear()
         self._nis.clear()
+        self._history.clear()
         self._slip.restart()
         self.last_fix = float(t)
         self.relocalizer.reset()

@@ -61,6 +61,9 @@ class RelocalizeConfig:
             gate would accept anything; while the wheels slip against a wall, fresh
             observations seed precise ones again).
         confirm_sigma: position σ (m) a hypothesis must be within to be confirmed.
+        replay_frames: at most this many frames since the last accepted observation (with the
+            odometry between them) the main filter keeps while tracking and replays into the re-localization when it finds itself lost: the
+            detections that made it lost are the first evidence of where the vehicle is.
     """
 
     confirm_targets: int = 2
@@ -71,9 +74,10 @@ class RelocalizeConfig:
     bounds: tuple[float, float, float, float] | None = None  # m
     max_sigma: float = 1.0  # m
     confirm_sigma: float = 0.25  # m
+    replay_frames: int = 60
 
     def __post_init__(self) -> None:
-        for name in ("confirm_targets", "max_misses", "max_hypotheses"):
+        for name in ("confirm_targets", "max_misses", "max_hypotheses", "replay_frames"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
@@ -201,7 +205,7 @@ class Relocalizer:
     def update(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
         """Test every hypothesis against a frame; returns the confirmed one, if any."""
         self._test(measurements)
-        return self._confirmed()
+        return self.confirmed()
 
     def process(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
         """One frame while lost (module docstring): test the live hypotheses, seed new ones
@@ -212,7 +216,7 @@ class Relocalizer:
         fresh = [m for k, m in enumerate(measurements) if k not in explained]
         if fresh:
             self.seed(fresh)
-        return self._confirmed()
+        return self.confirmed()
 
     def _test(self, measurements: Sequence[Measurement]) -> set[int]:
         """Associate and update every live hypothesis; drop the dead; the observations some
@@ -244,7 +248,7 @@ class Relocalizer:
         self._merge()
         return explained
 
-    def _confirmed(self) -> Hypothesis | None:
+    def confirmed(self) -> Hypothesis | None:
         """The hypothesis that matched ``confirm_targets`` distinct targets with every other
         matching fewer, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
