@@ -30,7 +30,7 @@ target that breaks the symmetry is seen.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -61,6 +61,9 @@ class RelocalizeConfig:
             gate would accept anything; while the wheels slip against a wall, fresh
             observations seed precise ones again).
         confirm_sigma: position σ (m) a hypothesis must be within to be confirmed.
+        view_margin: extra bearing (rad) on the gate's view margin when a hypothesis predicts
+            which targets are in view (a target at the edge of the image must not count
+            against the right hypothesis).
         replay_frames: at most this many frames since the last accepted observation (with the
             odometry between them) the main filter keeps while tracking and replays into the re-localization when it finds itself lost: the
             detections that made it lost are the first evidence of where the vehicle is.
@@ -74,6 +77,7 @@ class RelocalizeConfig:
     bounds: tuple[float, float, float, float] | None = None  # m
     max_sigma: float = 1.0  # m
     confirm_sigma: float = 0.25  # m
+    view_margin: float = math.radians(4.0)  # rad
     replay_frames: int = 60
 
     def __post_init__(self) -> None:
@@ -81,6 +85,7 @@ class RelocalizeConfig:
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
+        check_number("RelocalizeConfig.view_margin", self.view_margin, low=0.0, unit="rad")
         for name in ("max_sigma", "confirm_sigma"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit="m")
 
@@ -144,6 +149,8 @@ class Relocalizer:
         self.mount = mount
         self.gate = gate
         self.config = config
+        # the hypotheses' gate: the main filter's, seeing a little wider (view_margin)
+        self._gate = replace(gate, view=replace(gate.view, margin=gate.view.margin + config.view_margin))
         self.free_space = free_space  # (x m, y m) -> bool, or None
         self.hypotheses: list[Hypothesis] = []
         self._born = 0  # hypotheses made so far (their age order)
@@ -226,7 +233,7 @@ class Relocalizer:
             return explained
         alive: list[Hypothesis] = []
         for h in self.hypotheses:
-            assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self.gate)
+            assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self._gate)
             refused = 0
             # a match is evidence only when the gate was tight (a loose one accepts anything)
             precise = h.position_sigma() <= self.config.confirm_sigma
