@@ -4,9 +4,11 @@ Importing this package registers the environments under the ``agvsim``
 namespace::
 
     import gymnasium, envs
-    env = gymnasium.make("agvsim/PlantFloor-v0", localization="ekf")
+    env = gymnasium.make("agvsim/PlantFloor-v1", localization="ekf")
 
-or without the import: ``gymnasium.make("envs:agvsim/PlantFloor-v0")``.
+or without the import: ``gymnasium.make("envs:agvsim/PlantFloor-v1")``.
+Versions: ``-v1`` observes the localization status (``observe_status=True``);
+``-v0`` is kept as it was (no ``status`` in the observation).
 No physics, vision or filtering lives here: see :class:`envs.agv_env.AGVEnv`.
 """
 from gymnasium.envs.registration import register, registry
@@ -14,12 +16,19 @@ from gymnasium.envs.registration import register, registry
 from envs.agv_env import AGVEnv
 from envs.config import EnvConfig
 
-#: id -> default keyword arguments
+#: name -> (default keyword arguments, max_episode_steps), registered as each version
+_BASE_SPECS: dict[str, tuple[dict, int]] = {
+    "agvsim/PlantFloor": ({"map": "plant_floor", "task": "goto"}, 3000),
+    "agvsim/Corridor": ({"map": "corridor", "task": "goto"}, 1500),
+    "agvsim/ActiveLocalization": ({"map": "plant_floor", "task": "localize"}, 1000),
+}
+#: version suffix -> the keyword arguments it adds (v1: the localization status observed)
+VERSIONS: dict[str, dict] = {"v0": {}, "v1": {"observe_status": True}}
+
 #: id -> (default keyword arguments, max_episode_steps)
 ENV_SPECS: dict[str, tuple[dict, int]] = {
-    "agvsim/PlantFloor-v0": ({"map": "plant_floor", "task": "goto"}, 3000),
-    "agvsim/Corridor-v0": ({"map": "corridor", "task": "goto"}, 1500),
-    "agvsim/ActiveLocalization-v0": ({"map": "plant_floor", "task": "localize"}, 1000),
+    f"{name}-{version}": ({**kwargs, **extra}, steps)
+    for version, extra in VERSIONS.items() for name, (kwargs, steps) in _BASE_SPECS.items()
 }
 
 for _env_id, (_kwargs, _steps) in ENV_SPECS.items():
@@ -27,4 +36,4 @@ for _env_id, (_kwargs, _steps) in ENV_SPECS.items():
         register(id=_env_id, entry_point="envs.agv_env:AGVEnv", kwargs=dict(_kwargs),
                  max_episode_steps=_steps)
 
-__all__ = ["AGVEnv", "ENV_SPECS", "EnvConfig"]
+__all__ = ["AGVEnv", "ENV_SPECS", "EnvConfig", "VERSIONS"]

@@ -10,7 +10,11 @@ from gymnasium import spaces
 
 from envs.config import EnvConfig
 from envs.tasks import TASKS
-from localizer.numeric import wrap_angle
+from localizer.filter import STATUSES
+from localizer.numeric import check_numbers, wrap_angle
+
+#: the keys ``reset(options=...)`` accepts
+RESET_OPTIONS = ("start_pose", "believed_pose")
 
 
 class AGVEnv(gym.Env):
@@ -41,6 +45,10 @@ class AGVEnv(gym.Env):
     - ``wheel_speeds``: ``Box((2,), float32)`` measured (left, right) rim speeds (m/s).
     - ``image`` (with ``observe_image=True``): ``Box(0, 255, (480, 512, 1), uint8)``,
       the latest camera frame.
+    - ``status`` (``-v1``, or ``observe_status=True``): ``Discrete({n_statuses})``, the
+      localization status as its index in :data:`localizer.filter.STATUSES`
+      ({status_codes}). While not ``tracking``, ``pose`` and
+      ``covariance`` are the filter's last guess: not to be trusted.
 
     ## Rewards
     ``goto``: progress towards the goal measured on the *true* pose (m closer
@@ -53,6 +61,24 @@ class AGVEnv(gym.Env):
     ``np_random`` (``goto`` also draws a different goal station). The
     estimate starts at the true start pose.
 
+    ``reset(options=...)`` (keys {reset_options}; without options, or with
+    ``{}``, the same seed gives the same episode):
+    - ``start_pose``: (x m, y m, θ rad) where the vehicle really starts, in place of
+      the drawn station (which is still drawn, so the goal is the same as without
+      the option; ``info["start_station"]`` is then None); the chassis must fit
+      there: inside the map and clear of every wall and obstacle.
+    - ``believed_pose``: what the filter is told (``localization="ekf"`` only): a pose
+      (x m, y m, θ rad), or ``"unknown"``: the filter starts ``lost`` and localizes
+      from the targets it sees.
+    Unknown keys or bad values raise ``ValueError``.
+
+    ## Kidnapping
+    ``env.unwrapped.kidnap((x, y, θ))`` carries the vehicle to a pose mid-episode
+    without telling the filter (m, m, rad; the wheels do not turn, dead reckoning
+    and the estimate carry on from where they were): the kidnapped-robot
+    experiment. ``ValueError`` if the chassis would overlap a wall or obstacle
+    there, or the pose is off the map.
+
     ## Episode end
     ``terminated``: ``goto`` when the true pose is within ``goal_radius`` of
     the goal; with ``terminate_on_collision``, at the first contact.
@@ -62,12 +88,12 @@ class AGVEnv(gym.Env):
     max_episode_steps=N)``).
 
     ## Arguments
-    ``gymnasium.make("agvsim/PlantFloor-v0", map=..., route=..., task=...,
+    ``gymnasium.make("agvsim/PlantFloor-v1", map=..., route=..., task=...,
     odometry={odometry}, localization={localization},
     camera_rate=4.0, camera_latency=0.25, observations={observations},
     camera_mount=None | CameraMount | dict (None: the map's recommended mount),
     lens={lenses}, lighting_randomization=0.0, observe_image=False,
-    policy_rate=10.0, goal_radius=0.5,
+    observe_status=False (True in -v1), policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
     error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
     ``ValueError``. See :class:`envs.config.EnvConfig` for units.
@@ -76,7 +102,13 @@ class AGVEnv(gym.Env):
     ``reset`` adds ``start_station`` and ``goal_station`` (ids). Every step:
     ``true_pose``, ``estimated_pose``, ``odometry_pose`` (each (3,) float64,
     map frame), ``position_error`` (m), ``observations`` ({"accepted": n,
-    "rejected": m} this step), ``collision`` (bool).
+    "rejected": m} this step), ``collision`` (bool), and ``localization`` (also
+    at ``reset``; a fresh dict each time): ``status`` ({statuses}),
+    ``position_sigma`` (m, the largest standard deviation of the believed
+    position), ``since_fix`` (s since the last accepted target observation or
+    re-localization), ``reason`` (why lost; None while tracking),
+    ``lost_events`` and ``relocalizations`` (counts this episode). With
+    ``localization="truth"`` or ``"odometry"`` the status is always ``tracking``.
 
     ## Rendering
     ``render_mode="rgb_array"``: the top-down view with the true,
@@ -88,7 +120,10 @@ class AGVEnv(gym.Env):
     ``vector_kwargs={"context": "spawn"}`` there.
 
     ## Version history
-    - v0: initial release.
+    - v1: the observation gains ``status`` (``observe_status=True``); every version's
+      info gains ``localization``, ``reset`` its ``start_pose`` / ``believed_pose``
+      options, the env its ``kidnap``.
+    - v0: initial release (kept: the same observation space).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -128,6 +163,8 @@ class AGVEnv(gym.Env):
         }
         if self.config.observe_image:
             obs["image"] = spaces.Box(0, 255, (480, 512, 1), np.uint8)
+        if self.config.observe_status:
+            obs["status"] = spaces.Discrete(len(STATUSES))
         self.observation_space = spaces.Dict(obs)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.vision = VisionConfig(mount=self.config.camera_mount, focal_mm=float(self.config.lens)).for_map(self.map)
@@ -153,6 +190,7 @@ class AGVEnv(gym.Env):
 
     # -- Gymnasium API -------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        start_pose, believed_pose = self._reset_options(options)  # checked before anything is drawn
         super().reset(seed=seed)
         from agvsim.loop.closed_loop import ClosedLoop
 
@@ -164,15 +202,20 @@ class AGVEnv(gym.Env):
         spread = self.config.lighting_randomization
         if self._source is not None and spread > 0:
             self._source.set_exposure(float(np.exp(rng.normal(0.0, spread))))
-        self._episode = ClosedLoop(self.map, start.pose, rng, self._loop_config, self._source,
-                                   localization=self.config.localization)
+        if start_pose is not None:
+            start_id = None
+        self._episode = ClosedLoop(self.map, start.pose if start_pose is None else start_pose, rng,
+                                   self._loop_config, self._source, localization=self.config.localization,
+                                   believed_pose=believed_pose)
         self.task.reset(self._episode)
         self._steps = 0
         self._frame = None
         ep = self._episode
         self._paths = {"true": [ep.true_pose], "odometry": [ep.odometry_pose], "estimate": [ep.believed_pose]}
-        obs = self._observation(ep.believed_pose, ep.covariance, np.zeros(2))
+        localization = ep.localization_info()
+        obs = self._observation(ep.believed_pose, ep.covariance, np.zeros(2), localization["status"])
         info = self._info(accepted=0, rejected=0, collision=False)
+        info["localization"] = localization
         info["start_station"] = start_id
         info["goal_station"] = goal.id if goal is not None else None
         return obs, info
@@ -204,9 +247,19 @@ class AGVEnv(gym.Env):
         reward = -cfg.time_cost - cfg.collision_penalty * float(collided) + self.task.reward(ep, step)
         terminated = self.task.is_terminal(ep) or (cfg.terminate_on_collision and collided)
         truncated = False  # the step limit is gymnasium's TimeLimit (max_episode_steps)
-        obs = self._observation(believed, ep.covariance, step.wheel_speeds)
+        localization = ep.localization_info()
+        obs = self._observation(believed, ep.covariance, step.wheel_speeds, localization["status"])
         info = self._info(step.accepted, step.rejected, collided, true_pose, believed, odometry_pose)
+        info["localization"] = localization
         return obs, float(reward), bool(terminated), bool(truncated), info
+
+    def kidnap(self, pose) -> None:
+        """Carry the vehicle to ``pose`` (x m, y m, θ rad) mid-episode without telling the
+        filter (the kidnapped robot; see the class docstring). ``ValueError`` if the chassis
+        would overlap a wall or obstacle there, or the pose is off the map."""
+        if self._episode is None:
+            raise RuntimeError("call reset() before kidnap()")
+        self._episode.kidnap(pose)
 
     def render(self):
         if self.render_mode != "rgb_array" or self._episode is None:
@@ -244,7 +297,44 @@ class AGVEnv(gym.Env):
         self.__init__(render_mode=state["render_mode"], **state["kwargs"])
 
     # -- helpers ---------------------------------------------------------------
-    def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels) -> dict:
+    def _reset_options(self, options) -> tuple:
+        """(start pose or None, believed pose, "unknown" or None) from ``reset``'s ``options``;
+        one ``ValueError`` naming the option, its value and what was expected."""
+        if options is None:
+            return None, None
+        if not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict with some of the keys {', '.join(RESET_OPTIONS)}, "
+                             f"got {options!r}")
+        unknown = [k for k in options if k not in RESET_OPTIONS]
+        if unknown:
+            raise ValueError(f"unknown reset option {unknown[0]!r}; expected some of {', '.join(RESET_OPTIONS)}")
+        start = options.get("start_pose")
+        if start is not None:
+            start = check_numbers("reset option 'start_pose'", start, 3)
+            x, y = start[0], start[1]
+            vp = self.sim_config.vehicle
+            needed = 0.5 * math.hypot(vp.length, vp.width)  # the chassis' half diagonal (m)
+            if not self.map.is_free(x, y, needed):
+                xmin, ymin, xmax, ymax = self.map.bounds
+                where = (f"outside the map (x in [{xmin:g}, {xmax:g}], y in [{ymin:g}, {ymax:g}] m)"
+                         if not (xmin <= x <= xmax and ymin <= y <= ymax) else
+                         f"{self.map.clearance(x, y):.2f} m from the nearest wall or obstacle")
+                raise ValueError(f"reset option 'start_pose'={options['start_pose']!r} is {where}; expected a pose "
+                                 f"inside the map with at least {needed:.2f} m clearance for the chassis")
+        believed = options.get("believed_pose")
+        if believed is not None:
+            if self.config.localization != "ekf":
+                raise ValueError(f"reset option 'believed_pose'={believed!r} needs localization='ekf' "
+                                 f"(this env observes {self.config.localization!r})")
+            if isinstance(believed, str):
+                if believed != "unknown":
+                    raise ValueError(f"reset option 'believed_pose' must be a pose (x m, y m, theta rad) or "
+                                     f"'unknown', got {believed!r}")
+            else:
+                believed = check_numbers("reset option 'believed_pose'", believed, 3)
+        return start, believed
+
+    def _observation(self, pose: np.ndarray, cov: np.ndarray, wheels, status: str) -> dict:
         """Fresh arrays every call (the agent may keep or modify them)."""
         px, py, pth = pose.tolist()
         if self.task.goal is not None:
@@ -263,6 +353,8 @@ class AGVEnv(gym.Env):
         if self.config.observe_image:
             frame = self._frame if self._frame is not None else np.zeros((480, 512), np.uint8)
             obs["image"] = np.asarray(frame, dtype=np.uint8).reshape(480, 512, 1).copy()
+        if self.config.observe_status:
+            obs["status"] = np.int64(STATUSES.index(status))
         return obs
 
     def _info(self, accepted: int, rejected: int, collision: bool, true_pose: np.ndarray | None = None,
@@ -314,7 +406,10 @@ def _fill_doc(doc: str) -> str:
     from agvsim.vehicle.encoders import PRESETS
 
     tasks = "\n".join(f"    - ``{name}``: {cls.summary}" for name, cls in TASKS.items())
-    return (doc.replace("{tasks}", tasks).replace("{odometry}", _choices(PRESETS))
+    codes = ", ".join(f"{i}: ``{name}``" for i, name in enumerate(STATUSES))
+    return (doc.replace("{tasks}", tasks).replace("{n_statuses}", str(len(STATUSES)))
+            .replace("{status_codes}", codes).replace("{statuses}", _choices(STATUSES))
+            .replace("{reset_options}", ", ".join(f"``{k}``" for k in RESET_OPTIONS)).replace("{odometry}", _choices(PRESETS))
             .replace("{localization}", _choices(LOCALIZATION_MODES)).replace("{observations}", _choices(SOURCES))
             .replace("{lenses}", " | ".join(f"{v:g}" for v in LENSES_MM)))
 

@@ -41,6 +41,8 @@ class EnvConfig:
         lighting_randomization: per-episode exposure factor exp(N(0, σ²)) of
             rendered frames, σ this value (dimensionless; 0 disables it).
         observe_image: add the latest camera frame to the observation.
+        observe_status: add the localization status to the observation (``status``: its index
+            in :data:`localizer.filter.STATUSES`); the ``-v1`` environments set it.
         policy_rate: actions per second (Hz); a whole divisor of the physics rate.
         goal_radius: the goal is reached within this distance (m).
         terminate_on_collision: end the episode at the first contact.
@@ -62,6 +64,7 @@ class EnvConfig:
     lens: float = 16.0  # mm
     lighting_randomization: float = 0.0  # dimensionless
     observe_image: bool = False
+    observe_status: bool = False
     policy_rate: float = 10.0  # Hz
     goal_radius: float = 0.5  # m
     terminate_on_collision: bool = False
@@ -100,8 +103,9 @@ class EnvConfig:
             check_number(f"EnvConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
         for name in ("lighting_randomization", "collision_penalty", "time_cost"):
             check_number(f"EnvConfig.{name}", getattr(self, name), low=0.0)
-        if not isinstance(self.observe_image, bool) or not isinstance(self.terminate_on_collision, bool):
-            raise ValueError("EnvConfig.observe_image and terminate_on_collision must be True or False")
+        for name in ("observe_image", "observe_status", "terminate_on_collision"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"EnvConfig.{name} must be True or False, got {getattr(self, name)!r}")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "EnvConfig":

@@ -11,7 +11,8 @@ Per run:
 * NIS of every fused observation (χ²(3) when consistent): mean, share under χ²₃(0.95).
 * frames: share with an accepted observation (of all frames, and of frames with
   observations), observations, rejections, wrong associations (accepted but not
-  the target really seen; simulated sources know the truth), re-localizations, lost events.
+  the target really seen; simulated sources know the truth), re-localizations (recoveries),
+  lost events, time lost (s: the simulated time of the steps after which the filter was lost).
 * station arrivals: the estimate's position error when the follower passed each
   station (where the vehicle really is against where it believes it is there), and
   the true distance to the station then (the follower passes within its arrival radius).
@@ -113,6 +114,7 @@ def run_metrics(log) -> dict:
         "relocalizations": int(log.relocalizations),
         "lost": int(log.lost_events),
         "lost_steps_share": float(np.mean(log.lost)),
+        "time_lost_s": log.time_lost(),
         "stations_reached": len(log.arrivals),
         "arrival_error_mean_m": float(arrival_err.mean()) if len(arrival_err) else math.nan,
         "arrival_error_max_m": float(arrival_err.max()) if len(arrival_err) else math.nan,
@@ -182,6 +184,7 @@ def summarize(per_seed: list[dict], pooled_figures: dict | None = None) -> dict:
         "false_detections_accepted": int(sum(m["false_detections_accepted"] for m in per_seed)),
         "relocalizations": int(sum(m["relocalizations"] for m in per_seed)),
         "lost": int(sum(m["lost"] for m in per_seed)),
+        "time_lost_s": float(sum(m["time_lost_s"] for m in per_seed)),
         "collisions": int(sum(m["collisions"] for m in per_seed)),
         "arrival_error_mean_m": wmean("arrival_error_mean_m", np.array([m["stations_reached"] for m in per_seed], float)),
         "arrival_error_max_m": _nanmax([m["arrival_error_max_m"] for m in per_seed]),

@@ -4,7 +4,8 @@ camera correcting the drifting odometry.
 The vehicle follows the route with pure pursuit steering on its *estimated*
 pose: ``typical`` odometry, a camera rendering frames at 4 Hz, the localizer
 measuring the targets in them and the EKF fusing both. It prints a progress
-bar and a table of dead-reckoning and estimate errors against distance, and
+bar, a table of dead-reckoning and estimate errors against distance and the
+filter's losses (times lost, seconds lost, recoveries by re-localization), and
 writes a top-down picture (true, dead-reckoned and estimated trajectories),
 an error plot and a strip of camera frames with the targets the localizer
 found. ``--no-vision`` steers on the true pose instead and shows dead
@@ -185,6 +186,9 @@ def run(args) -> int:
             "frames": len(run_log.frames),
             "frames_with_accepted_observation": float(np.mean([f.accepted > 0 for f in run_log.frames]))
             if run_log.frames else 0.0,
+            "lost_events": int(run_log.lost_events),
+            "time_lost_s": run_log.time_lost(),
+            "recoveries": int(run_log.relocalizations),
         })
     if args.json:
         emit_json(result)
@@ -197,6 +201,8 @@ def run(args) -> int:
               f"{100 * result['frames_with_accepted_observation']:.0f} % with a target fused; "
               f"EKF estimate error RMSE {100 * result['estimate_rmse_m']:.1f} cm, "
               f"max {100 * result['estimate_max_m']:.1f} cm (ellipses: 2σ magnified 20x).")
+        print(f"Localization: lost {result['lost_events']} times for {result['time_lost_s']:.1f} s in all, "
+              f"recovered {result['recoveries']} times (re-localizations).")
     print(f"Dead reckoning ({args.odometry}) against truth:")
     print(format_table(table))
     print(f"Wrote the top-down view to {topdown}")

@@ -3,8 +3,9 @@
 Drives a route in closed loop (pure pursuit on the EKF's estimate, camera at
 its own rate, each frame rendered, localized and fused) for every seed, in
 parallel on the local cores, and reports position/heading error, NEES
-consistency, dead-reckoning drift, association and re-localization counts,
-and station arrival errors. Plots (trajectories with covariance ellipses,
+consistency, dead-reckoning drift, association counts, the filter's losses
+(times lost, seconds lost, recoveries by re-localization) and station
+arrival errors. Plots (trajectories with covariance ellipses,
 error against distance with the 2σ bound) are made for the median seed.
 """
 from __future__ import annotations
@@ -94,20 +95,21 @@ def _job(args: dict):
 
 
 def format_table(summary: dict, per_seed: list[dict]) -> str:
+    """Per seed and all seeds: errors, consistency, and the filter's losses: ``lost`` (times it
+    declared itself lost), ``lost s`` (simulated seconds spent lost), ``recov`` (recoveries:
+    re-localizations)."""
     lines = [f"{'seed':>5} {'RMSE cm':>8} {'p95 cm':>7} {'max cm':>7} {'hdg RMSE deg':>13} {'NEES in':>8} "
-             f"{'DR final m':>10} {'acc frames':>10} {'rej':>5} {'reloc':>5} {'lost':>4}"]
-    for m in per_seed:
-        lines.append(f"{m['seed']:5d} {100 * m['position_rmse_m']:8.2f} {100 * m['position_p95_m']:7.2f} "
-                     f"{100 * m['position_max_m']:7.2f} {math.degrees(m['heading_rmse_rad']):13.3f} "
-                     f"{100 * m['nees_in_bounds']:7.1f}% {m['dead_reckoning_final_error_m']:10.3f} "
-                     f"{100 * m['frames_with_accepted_observation']:9.1f}% {m['rejections']:5d} "
-                     f"{m['relocalizations']:5d} {m['lost']:4d}")
-    s = summary
-    lines.append(f"{'all':>5} {100 * s['position_rmse_m']:8.2f} {100 * s['position_p95_m']:7.2f} "
-                 f"{100 * s['position_max_m']:7.2f} {math.degrees(s['heading_rmse_rad']):13.3f} "
-                 f"{100 * s['nees_in_bounds']:7.1f}% {s['dead_reckoning_final_error_m']:10.3f} "
-                 f"{100 * s['frames_with_accepted_observation']:9.1f}% {s['rejections']:5d} "
-                 f"{s['relocalizations']:5d} {s['lost']:4d}")
+             f"{'DR final m':>10} {'acc frames':>10} {'rej':>5} {'lost':>4} {'lost s':>7} {'recov':>5}"]
+
+    def row(label: str, m: dict) -> str:
+        return (f"{label:>5} {100 * m['position_rmse_m']:8.2f} {100 * m['position_p95_m']:7.2f} "
+                f"{100 * m['position_max_m']:7.2f} {math.degrees(m['heading_rmse_rad']):13.3f} "
+                f"{100 * m['nees_in_bounds']:7.1f}% {m['dead_reckoning_final_error_m']:10.3f} "
+                f"{100 * m['frames_with_accepted_observation']:9.1f}% {m['rejections']:5d} "
+                f"{m['lost']:4d} {m['time_lost_s']:7.1f} {m['relocalizations']:5d}")
+
+    lines += [row(str(m["seed"]), m) for m in per_seed]
+    lines.append(row("all", summary))
     return "\n".join(lines)
 
 
@@ -260,8 +262,9 @@ def run(args) -> int:
               f"{100 * summary['nees_in_bounds']:.1f} % of steps; dead reckoning final error "
               f"{summary['dead_reckoning_final_error_m']:.3f} m ({100 * summary['dead_reckoning_drift_per_m']:.2f} % "
               f"of distance); frames with an accepted observation "
-              f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}, "
-              f"re-localizations {summary['relocalizations']}, lost {summary['lost']}; arrival error mean "
+              f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}; "
+              f"lost {summary['lost']} times for {summary['time_lost_s']:.1f} s in all, recovered "
+              f"{summary['relocalizations']} times (re-localizations); arrival error mean "
               f"{100 * summary['arrival_error_mean_m']:.1f} cm")
         if not args.no_vision:
             print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))

@@ -102,7 +102,8 @@ class MissionLog:
         arrivals: the follower passing each station (:class:`Arrival`).
         completed: route finished before the step limit.
         collisions: contact begins.
-        rejections, relocalizations, lost_events: filter counters at the end.
+        rejections, relocalizations, lost_events: filter counters at the end (a re-localization
+            is a recovery from being lost; :meth:`time_lost` sums the lost steps).
         timings: wall seconds spent in "sim", "observe", "filter", "total".
         steer_on: what the follower steered on ("estimate" or "truth").
     """
@@ -133,6 +134,14 @@ class MissionLog:
     def odometry_heading_error(self) -> np.ndarray:
         """(N,) dead-reckoning heading error wrapped to [-π, π) (rad)."""
         return wrap_angle(self.odometry_pose[:, 2] - self.true_pose[:, 2])
+
+    def time_lost(self) -> float:
+        """Simulated seconds the filter spent lost (the steps after which :attr:`lost` is set,
+        each counted for its own duration)."""
+        if not len(self.time):
+            return 0.0
+        durations = np.diff(self.time, prepend=0.0)
+        return float(durations[self.lost].sum())
 
     def estimate_error(self) -> np.ndarray:
         """(N,) position error of the filter's estimate (m)."""
