@@ -175,3 +175,21 @@ def test_kidnap_moves_the_vehicle_and_leaves_the_estimate():
 def test_kidnap_before_reset_is_an_error():
     with pytest.raises(RuntimeError, match="reset"):
         make().unwrapped.kidnap(FREE)
+
+
+def test_unknown_start_is_reported_lost_until_the_filter_relocalizes():
+    """obs["status"] and info["localization"] follow the filter: lost, relocalizing, then tracking
+    near the truth, with the recovery counted."""
+    env = make(task="localize")
+    obs, info = env.reset(seed=0, options={"believed_pose": "unknown"})
+    codes = [int(obs["status"])]
+    for _ in range(300):
+        obs, _, _, _, info = env.step(np.array([0.2, 0.3], np.float32))
+        assert int(obs["status"]) == STATUSES.index(info["localization"]["status"])
+        if codes[-1] != int(obs["status"]):
+            codes.append(int(obs["status"]))
+        if info["localization"]["status"] == TRACKING:
+            break
+    assert [STATUSES[c] for c in codes][0] == LOST and STATUSES[codes[-1]] == TRACKING
+    assert info["localization"]["relocalizations"] == 1 and info["localization"]["reason"] is None
+    assert info["position_error"] < 0.5
