@@ -4,7 +4,7 @@ Four experiments, each trial in a worker process (a local pool, ``--workers``), 
 frames (the raycast backend, the envs' default camera):
 
 ``random``
-    ``agvsim/PlantFloor-v0`` with its defaults, ``reset(seed=s)``, then ``--steps`` steps of
+    ``agvsim/PlantFloor-v1`` (v0 with the status observed) with its defaults, ``reset(seed=s)``, then ``--steps`` steps of
     the smoothed random policy ``a <- 0.9 a + 0.1 (U(0.2, 1), U(-1, 1))`` drawn from
     ``numpy.random.default_rng(s)`` (the agent drives into things). Per step: *honest* when
     the filter reports itself lost (``lost`` or ``relocalizing``) or the true position error
@@ -19,7 +19,8 @@ frames (the raycast backend, the envs' default camera):
     the default route of each shipped map, and must find itself.
 ``wall``
     After ``--settle`` s the vehicle turns to the nearest wall or obstacle and pushes into it
-    for ``--push`` s (wheels spinning), then drives on along the route for ``--after`` s.
+    for ``--push`` s (wheels spinning), backs off for 2 s, then drives on along the route for
+    ``--after`` s.
 
 Per event (kidnap, unknown start, end of the push): seconds from the first refused
 detection to ``lost`` (floor 5 s); seconds from having seen two distinct targets (their truth
@@ -167,7 +168,7 @@ def _random_trial(seed: int, steps: int) -> dict:
 
     import envs  # noqa: F401  (registers the envs)
 
-    env = gym.make("agvsim/PlantFloor-v0")
+    env = gym.make("agvsim/PlantFloor-v1")
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     a = np.zeros(2)
@@ -323,6 +324,8 @@ def _push_into_wall(loop, watch, seconds: float) -> None:
             pushed += 1.0 / rate
             if pushed >= seconds:
                 break
+    for _ in range(int(2 * rate)):  # back off the wall before driving on
+        watch.after_step(loop.step(-0.5, 0.0))
 
 
 def _run_trial(task: tuple) -> dict:
@@ -384,7 +387,9 @@ def summarize(results: list[dict]) -> dict:
              "wrong_relocalizations": sum(len(r["wrong"]) for r in rs),
              "lost_frame_ms_median": float(np.median(lost_ms)) if len(lost_ms) else None,
              "lost_frame_ms_p95": float(np.percentile(lost_ms, 95)) if len(lost_ms) else None}
-        floors = {"honest_share": g["honest_share"] >= FLOOR_HONEST, "no_wrong_relocalization": g["wrong_relocalizations"] == 0}
+        floors = {"no_wrong_relocalization": g["wrong_relocalizations"] == 0}
+        if key in ("random", "wall"):  # after a kidnap the filter may be wrong until it notices (detect_s)
+            floors["honest_share"] = g["honest_share"] >= FLOOR_HONEST
         if key == "random":
             floors["tracking_p95"] = g["tracking_p95_m"] is not None and g["tracking_p95_m"] <= FLOOR_TRACKING_P95
         else:

@@ -320,7 +320,7 @@ class ClosedLoop:
         self.ekf.add_odometry(now, result.ds, result.dtheta, touched)
         if self._odometry_motion is not None:
             self._odometry_motion.add(result.ds, result.dtheta,
-                                      self._odometry_slip.extra(result.ds, result.dtheta, touched))
+                                      self._odometry_slip.extra(result.ds, result.dtheta, touched, now))
         timings["sim"] += t1 - t0
         timings["filter"] += perf() - t1
         fused = []

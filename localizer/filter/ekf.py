@@ -47,7 +47,8 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
 * told so: :meth:`PoseEKF.declare_lost` (an unknown start pose).
 
 Then :class:`~localizer.filter.relocalize.Relocalizer` takes the frames until a hypothesis is
-confirmed (global re-localization from nothing: the main state plays no part in it). While
+confirmed (never while a contact's wheel slip is still counting: the odometry the hypotheses
+ride on is not to be trusted then; global re-localization from nothing: the main state plays no part in it). While
 tracking, the filter keeps the frames since the last one with an accepted observation (at most
 ``relocalize.replay_frames``), their measurements and the odometry between them; on becoming
 lost it replays them into the re-localization first, so the
@@ -102,6 +103,9 @@ class FilterConfig:
         nis_window: accepted updates whose mean NIS is watched.
         nis_probability: lost when that mean exceeds the χ²(3 ``nis_window``) quantile of this
             probability over ``nis_window``.
+        lost_sigma: (σ_x m, σ_y m, σ_θ rad) the covariance is set to when the filter finds
+            itself lost: the state is then a guess, and says so to whoever reads only the
+            covariance.
         contact_slip: share of the wheel motion counted while in contact that may be slip
             (:class:`~localizer.filter.motion.ContactSlip`; 0 turns it off).
     """
@@ -118,6 +122,7 @@ class FilterConfig:
     misfit_radius: float = 0.3  # m
     nis_window: int = 10
     nis_probability: float = 0.9999  # dimensionless
+    lost_sigma: tuple[float, float, float] = (100.0, 100.0, math.pi)  # m, m, rad
     contact_slip: float = 1.0  # dimensionless
 
     def __post_init__(self) -> None:
@@ -130,6 +135,7 @@ class FilterConfig:
         check_number("FilterConfig.nis_probability", self.nis_probability, low=0.0, high=1.0, low_open=True,
                      high_open=True)
         check_number("FilterConfig.contact_slip", self.contact_slip, low=0.0)
+        check_numbers("FilterConfig.lost_sigma", self.lost_sigma, 3, low=0.0, low_open=True)
         check_number("FilterConfig.misfit_radius", self.misfit_radius, low=0.0, low_open=True, unit="m")
 
     @property
@@ -267,7 +273,7 @@ class PoseEKF:
         slipped: :attr:`FilterConfig.contact_slip`)."""
         if self._pending and t < self._pending[-1][0]:
             raise ValueError(f"odometry time stamps must not decrease: {t!r} after {self._pending[-1][0]!r}")
-        slip = self._slip.extra(ds, dtheta, in_contact)
+        slip = self._slip.extra(ds, dtheta, in_contact, t)
         self._pending.append((float(t), float(ds), float(dtheta), slip))
         self._now.add(ds, dtheta, slip)
 
@@ -332,6 +338,7 @@ class PoseEKF:
         self.lost = True
         self.lost_reason = str(reason)
         self.lost_events += 1
+        self.kf.P = np.diag(np.asarray(self.config.lost_sigma, dtype=float) ** 2)
         reloc = self.relocalizer
         reloc.reset()
         for u, Q, ms in self._history:  # the recent frames first (module docstring)
@@ -393,7 +400,7 @@ class PoseEKF:
         # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
         relocalized = False
-        if self.lost:  # the replay may already have found the vehicle
+        if self.lost and not self._slip.slipping:  # the replay may already have found the vehicle
             confirmed = self.relocalizer.confirmed()
             if confirmed is not None:
                 self._adopt(confirmed, t_capture)
@@ -427,10 +434,13 @@ class PoseEKF:
 
     def _relocalize(self, t: float, ms: list[Measurement]) -> FrameResult:
         reloc = self.relocalizer
-        confirmed = reloc.process(ms) if ms else None
+        confirmed = reloc.process(ms, evidence=not self._slip.slipping) if ms else None
         self.rejections += len(ms)
-        if confirmed is not None:
+        # not while the wheels may be slipping: the hypotheses' odometry is not to be trusted
+        if confirmed is not None and not self._slip.slipping:
             self._adopt(confirmed, t)
+        else:
+            confirmed = None
         return FrameResult(t, tuple(), np.zeros(0), 0, self.lost, confirmed is not None,
                            len(reloc.hypotheses), self.status)
 

@@ -240,35 +240,50 @@ class ContactSlip:
         var Δs += (v_L + v_R) / 4,  var Δθ += (v_L + v_R) / b²,  cov(Δs, Δθ) += (v_R - v_L) / (2 b)
         v_w = k² ((D_w + |s_w|)² - D_w²)
 
-    Out of contact nothing is added and the contact's arc lengths start again from zero; they
-    also start again at a fix (:meth:`restart`: the error up to the fix is measured, what slips
-    after it is at most the motion counted after it).
+    Out of contact nothing is added; the contact's arc lengths start again from zero once the
+    vehicle has been free for ``release`` seconds (a bumper that flickers while pushing along
+    a wall does not restart the count), and at a fix (:meth:`restart`: the error up to the fix
+    is measured, what slips after it is at most the motion counted after it).
+    :attr:`slipping` says whether a contact is still counting.
 
     Args:
         fraction: ``k``, the share of the counted wheel motion that may be slip while in
             contact (dimensionless, >= 0; 0 turns the model off).
         track_width: the wheelbase ``b`` (m).
+        release: seconds free of contact after which a contact is over (s).
     """
 
-    __slots__ = ("fraction", "track_width", "arc_left", "arc_right")
+    __slots__ = ("fraction", "track_width", "release", "arc_left", "arc_right", "last_contact")
 
-    def __init__(self, fraction: float, track_width: float) -> None:
+    def __init__(self, fraction: float, track_width: float, release: float = 1.0) -> None:
         check_number("ContactSlip.fraction", fraction, low=0.0)
         check_number("ContactSlip.track_width", track_width, low=0.0, low_open=True, unit="m")
+        check_number("ContactSlip.release", release, low=0.0, unit="s")
         self.fraction = float(fraction)
         self.track_width = float(track_width)
+        self.release = float(release)
         self.arc_left = self.arc_right = 0.0  # m counted since the contact began
+        self.last_contact = -math.inf  # s
+
+    @property
+    def slipping(self) -> bool:
+        """A contact is counting (the odometry may be slipping)."""
+        return self.arc_left > 0.0 or self.arc_right > 0.0
 
     def restart(self) -> None:
         """Count the contact's wheel motion from zero again (after a fix)."""
         self.arc_left = self.arc_right = 0.0
 
-    def extra(self, ds: float, dtheta: float, in_contact: bool):
-        """The slip noise ``(var Δs m², cov m·rad, var Δθ rad²)`` of the increment (Δs m, Δθ rad),
-        or ``None`` when not in contact (or the model is off)."""
-        if not in_contact or self.fraction == 0.0:
-            self.arc_left = self.arc_right = 0.0
+    def extra(self, ds: float, dtheta: float, in_contact: bool, t: float):
+        """The slip noise ``(var Δs m², cov m·rad, var Δθ rad²)`` of the increment (Δs m, Δθ rad)
+        that ended at ``t`` (s), or ``None`` when not in contact (or the model is off)."""
+        if self.fraction == 0.0:
             return None
+        if not in_contact:
+            if t - self.last_contact > self.release:
+                self.arc_left = self.arc_right = 0.0
+            return None
+        self.last_contact = t
         b = self.track_width
         s_l = abs(ds - 0.5 * b * dtheta)
         s_r = abs(ds + 0.5 * b * dtheta)

@@ -8,9 +8,10 @@ odometry as the main filter and updated through the same filterpy update
 (:mod:`localizer.filter.update`). Nothing of the lost filter's own estimate is used.
 
 Each frame (:meth:`Relocalizer.process`): every live hypothesis associates the frame's
-observations (the main filter's χ² gate) and is updated with those it accepts; an
-observation no hypothesis accepted seeds new hypotheses (all its pairings), so the right
-pose is found even when the first frames after the vehicle was lost were misleading.
+observations (the main filter's χ² gate) and is updated with those it accepts; then every
+observation seeds hypotheses (all its pairings; those that duplicate a live hypothesis merge
+into it), so the right pose is among them even when a wrong hypothesis happens to explain
+what is seen.
 Hypotheses outside the map's free space are dropped, as are those whose observations failed
 to match ``max_misses`` times (a single false detection does not kill the right one), and
 of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
@@ -214,18 +215,18 @@ class Relocalizer:
         self._test(measurements)
         return self.confirmed()
 
-    def process(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
+    def process(self, measurements: Sequence[Measurement], evidence: bool = True) -> Hypothesis | None:
         """One frame while lost (module docstring): test the live hypotheses, seed new ones
-        from the observations none of them accepted; returns the confirmed one, if any."""
+        from every observation (those a live hypothesis already explains merge into it);
+        returns the confirmed one, if any. ``evidence=False`` (the wheels may be slipping):
+        the hypotheses are updated, but what they match does not count towards confirmation."""
         if not measurements:
             return None
-        explained = self._test(measurements)
-        fresh = [m for k, m in enumerate(measurements) if k not in explained]
-        if fresh:
-            self.seed(fresh)
+        self._test(measurements, evidence)
+        self.seed(measurements)  # duplicates of live hypotheses merge away
         return self.confirmed()
 
-    def _test(self, measurements: Sequence[Measurement]) -> set[int]:
+    def _test(self, measurements: Sequence[Measurement], evidence: bool = True) -> set[int]:
         """Associate and update every live hypothesis; drop the dead; the observations some
         hypothesis accepted."""
         explained: set[int] = set()
@@ -236,7 +237,7 @@ class Relocalizer:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self._gate)
             refused = 0
             # a match is evidence only when the gate was tight (a loose one accepts anything)
-            precise = h.position_sigma() <= self.config.confirm_sigma
+            precise = evidence and h.position_sigma() <= self.config.confirm_sigma
             for a in assoc:
                 if a.status != ACCEPTED:
                     refused += 1

@@ -63,11 +63,14 @@ def test_contact_slip_off_only_when_asked_and_restarts_after_contact():
     for k in range(50):
         off.add_odometry((k + 1) * DT, 0.1, 0.0, in_contact=True)
     assert off.position_sigma() < 0.1
-    slip = ContactSlip(1.0, 0.6)
-    first = slip.extra(0.1, 0.0, True)
-    slip.extra(0.1, 0.0, True)
-    assert slip.extra(0.1, 0.0, False) is None
-    assert slip.extra(0.1, 0.0, True) == pytest.approx(first)  # a new contact counts from zero
+    slip = ContactSlip(1.0, 0.6, release=1.0)
+    first = slip.extra(0.1, 0.0, True, 0.1)
+    second = slip.extra(0.1, 0.0, True, 0.2)
+    assert second[0] > first[0]  # the bias grows with the motion counted in the contact
+    assert slip.extra(0.1, 0.0, False, 0.3) is None and slip.slipping  # a flicker: still counting
+    assert slip.extra(0.1, 0.0, True, 0.4)[0] > second[0]
+    assert slip.extra(0.1, 0.0, False, 1.5) is None and not slip.slipping  # free for 1.1 s: over
+    assert slip.extra(0.1, 0.0, True, 1.6) == pytest.approx(first)  # a new contact counts from zero
     with pytest.raises(ValueError, match="FilterConfig.contact_slip"):
         FilterConfig(contact_slip=-1.0)
 
