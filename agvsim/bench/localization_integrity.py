@@ -147,10 +147,11 @@ class _Watch:
 
     def event_figures(self) -> dict:
         t0 = self._t_event
+        # rounded to the µs: the times are sums of control steps (5.000000000000071 is 5 s)
         detect = (None if self.t_refused is None or self.t_lost is None
-                  else max(self.t_lost - max(self.t_refused, t0), 0.0))
+                  else round(max(self.t_lost - max(self.t_refused, t0), 0.0), 6))
         recover = (None if self.t_two is None or self.t_recovered is None
-                   else max(self.t_recovered - self.t_two, 0.0))
+                   else round(max(self.t_recovered - self.t_two, 0.0), 6))
         return {"detect_s": detect, "recover_s": recover, "refused": self.t_refused is not None,
                 "declared_lost": self.t_lost is not None, "saw_two": self.t_two is not None}
 
@@ -396,14 +397,16 @@ def summarize(results: list[dict]) -> dict:
             det = [r["detect_s"] for r in rs if r["refused"]]
             rec_ok = [r["recover_s"] is not None and r["recover_s"] <= FLOOR_RECOVER_S for r in rs]
             g["detect_s_max"] = max((d for d in det if d is not None), default=None)
+            g["detect_within_5s_share"] = (sum(d is not None and d <= FLOOR_DETECT_S for d in det) / len(det)
+                                           if det else None)
             g["never_declared"] = sum(1 for r in rs if r["refused"] and not r["declared_lost"])
             g["recovered_share"] = sum(rec_ok) / len(rs)
             g["recover_s_median"] = (float(np.median([r["recover_s"] for r in rs if r["recover_s"] is not None]))
                                      if any(r["recover_s"] is not None for r in rs) else None)
             g["saw_two_share"] = sum(r["saw_two"] for r in rs) / len(rs)
-            if not key.startswith("unknown"):
-                floors["detect_within_5s"] = (g["never_declared"] == 0 and all(d is not None and d <= FLOOR_DETECT_S
-                                                                              for d in det))
+            if not key.startswith("unknown"):  # in >= 95 % of trials, as the recovery
+                floors["detect_within_5s"] = (g["never_declared"] == 0 and g["detect_within_5s_share"] is not None
+                                              and g["detect_within_5s_share"] >= FLOOR_RECOVERED_SHARE)
             floors["recovered_95"] = g["recovered_share"] >= FLOOR_RECOVERED_SHARE
         g["floors"] = floors
         out[key] = g
@@ -414,22 +417,29 @@ def _fmt(v, spec: str) -> str:
     return "-" if v is None else format(v, spec)
 
 
+def _pct(v, width: int) -> str:
+    return ("-" if v is None else f"{100 * v:.0f}").rjust(width) + "%"
+
+
 def format_table(res: dict) -> str:
     m = res["machine"]
     lines = [f"agvsim bench localization-integrity: {res['workers']} workers, {res['wall_s']:.0f} s wall",
              f"machine: {m.get('cpu_model', m.get('processor'))}, {m.get('cpu_count')} CPUs",
              f"{'experiment':18s} {'trials':>6s} {'steps':>7s} {'honest':>8s} {'lost':>6s} {'p95 trk':>8s} "
-             f"{'reloc':>5s} {'wrong':>5s} {'detect max':>10s} {'recovered':>9s} {'rec med':>7s} {'lost ms':>8s}"]
+             f"{'reloc':>5s} {'wrong':>5s} {'det<=5s':>7s} {'det max':>7s} {'recovered':>9s} {'rec med':>7s} "
+             f"{'lost ms':>7s} {'p95':>5s}"]
     for key, g in res["summary"].items():
         lines.append(f"{key:18s} {g['trials']:6d} {g['steps']:7d} {100 * g['honest_share']:7.2f}% "
                      f"{100 * g['lost_share']:5.1f}% {_fmt(g['tracking_p95_m'] and 100 * g['tracking_p95_m'], '7.1f')}c "
                      f"{g['relocalizations']:5d} {g['wrong_relocalizations']:5d} "
-                     f"{_fmt(g.get('detect_s_max'), '9.2f')}s {_fmt(g.get('recovered_share') and 100 * g['recovered_share'], '8.0f')}% "
-                     f"{_fmt(g.get('recover_s_median'), '6.1f')}s {_fmt(g['lost_frame_ms_median'], '7.1f')}")
+                     f"{_pct(g.get('detect_within_5s_share'), 6)} {_fmt(g.get('detect_s_max'), '6.1f')}s "
+                     f"{_pct(g.get('recovered_share'), 8)} "
+                     f"{_fmt(g.get('recover_s_median'), '6.1f')}s {_fmt(g['lost_frame_ms_median'], '7.1f')} "
+                     f"{_fmt(g['lost_frame_ms_p95'], '5.0f')}")
         bad = [k for k, ok in g["floors"].items() if not ok]
         lines.append(f"{'':18s} floors: {'all met' if not bad else 'NOT met: ' + ', '.join(bad)}")
     lines.append("honest: steps with the true error inside the reported 3-sigma region, or the filter "
                  "reporting itself lost; p95 trk: error while tracking; detect: first refused detection -> "
-                 "lost; recovered: error <= 10 cm while tracking within 15 s of two distinct targets seen; "
-                 "lost ms: filter ms per frame while lost (median)")
+                 "lost (floor 5 s in >= 95 % of trials); recovered: error <= 10 cm while tracking within 15 s "
+                 "of two distinct targets seen; lost ms: filter ms per frame while lost (median, p95)")
     return "\n".join(lines)

@@ -12,7 +12,8 @@ Plain data in, plain data out; imports neither ``agvsim`` nor ``envs``.
 """
 from localizer.filter.association import (ACCEPTED, AMBIGUOUS, DUPLICATE, GATED, NO_CANDIDATE, Association,
                                           GateConfig, associate, innovation)
-from localizer.filter.ekf import LOST, RELOCALIZING, STATUSES, TRACKING, FilterConfig, FrameResult, PoseEKF
+from localizer.filter.config import FilterConfig
+from localizer.filter.ekf import LOST, RELOCALIZING, STATUSES, TRACKING, FrameResult, PoseEKF
 from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, pose_from_measurement,
                                           pose_from_measurement_jacobian, predict_all,

@@ -37,7 +37,8 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
 * consistent detections that the estimate cannot explain: refused detections that misfit
   grossly (no target of their polarity predicted in view, or the nearest candidate's D² above
   ``misfit_d2``), placed in the map from the estimate, that fall within ``misfit_radius`` of
-  one another over ``lost_misfit_frames`` such frames in a row (one real target seen from a wrong estimate
+  one another, facing the same way within ``misfit_yaw``, over ``lost_misfit_frames`` such
+  frames in a row (one real target seen from a wrong estimate
   stays put, as odometry moves the estimate with the vehicle; false detections do not line
   up). The check that works far from the truth, and fast;
 * the estimate outside the map's free space (inside a wall or an obstacle, or outside the
@@ -64,13 +65,14 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.filter.association import ACCEPTED, Association, GateConfig, associate, gate_threshold
+from localizer.filter.association import ACCEPTED, Association, associate
+from localizer.filter.config import FilterConfig
 from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
-from localizer.filter.motion import ContactSlip, OdometryAccumulator, OdometryNoise, compose_jacobians
-from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
+from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
+from localizer.filter.relocalize import Hypothesis, Relocalizer
 from localizer.filter.update import PoseKF, predict_pose, update_pose
-from localizer.numeric import check_number, check_numbers, wrap_angle
+from localizer.numeric import wrap_angle
 
 __all__ = ["FilterConfig", "FrameResult", "LOST", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING"]
 
@@ -79,69 +81,6 @@ LOST = "lost"  # the filter does not know where the vehicle is, and has no candi
 RELOCALIZING = "relocalizing"  # lost, with candidate poses (hypotheses) being tested
 #: the filter's states, in the order of their codes (the env's ``status`` observation)
 STATUSES = (TRACKING, LOST, RELOCALIZING)
-
-
-@dataclass(frozen=True)
-class FilterConfig:
-    """Settings of :class:`PoseEKF`.
-
-    Attributes:
-        noise: odometry motion-noise model.
-        gate: association settings.
-        relocalize: re-localization settings.
-        measurement_floor: (σ_d m, σ_β rad, σ_α rad) added in quadrature to every
-            observation's covariance (camera mount and map survey errors).
-        lost_position_sigma: position σ (m) above which the filter is lost.
-        lost_heading_sigma: heading σ (rad) above which the filter is lost.
-        lost_rejected_frames: frames in a row with observations and a target predicted in view,
-            none accepted, before lost.
-        lost_misfit_frames: frames whose grossly misfitting detections line up (module
-            docstring) before lost.
-        misfit_d2: D² (dimensionless) above which a refused detection misfits grossly.
-        misfit_radius: how close (m) two frames' misfitting detections, placed in the map from
-            the estimate, must be to line up.
-        nis_window: accepted updates whose mean NIS is watched.
-        nis_probability: lost when that mean exceeds the χ²(3 ``nis_window``) quantile of this
-            probability over ``nis_window``.
-        lost_sigma: (σ_x m, σ_y m, σ_θ rad) the covariance is set to when the filter finds
-            itself lost: the state is then a guess, and says so to whoever reads only the
-            covariance.
-        contact_slip: share of the wheel motion counted while in contact that may be slip
-            (:class:`~localizer.filter.motion.ContactSlip`; 0 turns it off).
-    """
-
-    noise: OdometryNoise = OdometryNoise()
-    gate: GateConfig = GateConfig()
-    relocalize: RelocalizeConfig = RelocalizeConfig()
-    measurement_floor: tuple[float, float, float] = (0.002, 0.0003, 0.002)  # m, rad, rad
-    lost_position_sigma: float = 1.0  # m
-    lost_heading_sigma: float = math.radians(20.0)  # rad
-    lost_rejected_frames: int = 12
-    lost_misfit_frames: int = 4
-    misfit_d2: float = 100.0  # D², dimensionless
-    misfit_radius: float = 0.3  # m
-    nis_window: int = 10
-    nis_probability: float = 0.9999  # dimensionless
-    lost_sigma: tuple[float, float, float] = (100.0, 100.0, math.pi)  # m, m, rad
-    contact_slip: float = 1.0  # dimensionless
-
-    def __post_init__(self) -> None:
-        check_numbers("FilterConfig.measurement_floor", self.measurement_floor, 3, low=0.0)
-        for name, unit in (("lost_position_sigma", "m"), ("lost_heading_sigma", "rad")):
-            check_number(f"FilterConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit=unit)
-        check_number("FilterConfig.misfit_d2", self.misfit_d2, low=0.0, low_open=True, unit="D²")
-        for name in ("lost_rejected_frames", "lost_misfit_frames", "nis_window"):
-            check_number(f"FilterConfig.{name}", getattr(self, name), low=1, integer=True)
-        check_number("FilterConfig.nis_probability", self.nis_probability, low=0.0, high=1.0, low_open=True,
-                     high_open=True)
-        check_number("FilterConfig.contact_slip", self.contact_slip, low=0.0)
-        check_numbers("FilterConfig.lost_sigma", self.lost_sigma, 3, low=0.0, low_open=True)
-        check_number("FilterConfig.misfit_radius", self.misfit_radius, low=0.0, low_open=True, unit="m")
-
-    @property
-    def nis_limit(self) -> float:
-        """The mean NIS over :attr:`nis_window` updates above which the filter is lost."""
-        return gate_threshold(self.nis_probability, 3 * self.nis_window) / self.nis_window
 
 
 @dataclass(frozen=True)
@@ -206,8 +145,9 @@ class PoseEKF:
         self.lost_reason: str | None = None  # why the filter is lost (None while tracking)
         self.rejected_frames = 0  # consecutive frames with a target predicted in view, none accepted
         self.misfit_frames = 0  # the longest line-up of grossly misfitting detections (frames)
-        # misfitting detections since the last accepted one: (x m, y m, polarity, support frames)
-        self._misfits: list[tuple[float, float, str | None, int, int]] = []  # ..., frame number
+        # misfitting detections since the last accepted one placed in the map:
+        # (x m, y m, facing rad, polarity, support frames, misfit frame number)
+        self._misfits: list[tuple[float, float, float, str | None, int, int]] = []
         self._misfit_count = 0  # frames with misfitting detections so far
         self.rejections = 0  # observations not accepted, total
         self.relocalizations = 0
@@ -416,14 +356,17 @@ class PoseEKF:
         r2 = self.config.misfit_radius ** 2
         self._misfit_count += 1
         k = self._misfit_count
-        past = [e for e in self._misfits if e[4] >= k - 2]  # the two frames before this one
+        past = [e for e in self._misfits if e[5] >= k - 2]  # the two frames before this one
         now = []
+        max_yaw = self.config.misfit_yaw
         for m in ms:
-            d, beta = float(m.z[0]), float(m.z[1])
+            d, beta, alpha = float(m.z[0]), float(m.z[1]), float(m.z[2])
             px, py = lens[0] + d * math.cos(phi - beta), lens[1] + d * math.sin(phi - beta)
-            support = 1 + max((n for (qx, qy, pol, n, _) in past
-                               if pol == m.polarity and (qx - px) ** 2 + (qy - py) ** 2 <= r2), default=0)
-            now.append((px, py, m.polarity, support, k))
+            yaw = phi - alpha - math.pi  # the way the target faces (h(x), localizer.filter.measurement)
+            support = 1 + max((n for (qx, qy, qyaw, pol, n, _) in past
+                               if pol == m.polarity and (qx - px) ** 2 + (qy - py) ** 2 <= r2
+                               and abs(wrap_angle(yaw - qyaw)) <= max_yaw), default=0)
+            now.append((px, py, yaw, m.polarity, support, k))
             self.misfit_frames = max(self.misfit_frames, support)
         self._misfits = now + past
 
