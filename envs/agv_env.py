@@ -212,8 +212,9 @@ class AGVEnv(gym.Env):
         self._frame = None
         ep = self._episode
         self._paths = {"true": [ep.true_pose], "odometry": [ep.odometry_pose], "estimate": [ep.believed_pose]}
-        localization = ep.localization_info()
-        obs = self._observation(ep.believed_pose, ep.covariance, np.zeros(2), localization["status"])
+        cov = ep.covariance
+        localization = ep.localization_info(cov)
+        obs = self._observation(ep.believed_pose, cov, np.zeros(2), localization["status"])
         info = self._info(accepted=0, rejected=0, collision=False)
         info["localization"] = localization
         info["start_station"] = start_id
@@ -247,8 +248,9 @@ class AGVEnv(gym.Env):
         reward = -cfg.time_cost - cfg.collision_penalty * float(collided) + self.task.reward(ep, step)
         terminated = self.task.is_terminal(ep) or (cfg.terminate_on_collision and collided)
         truncated = False  # the step limit is gymnasium's TimeLimit (max_episode_steps)
-        localization = ep.localization_info()
-        obs = self._observation(believed, ep.covariance, step.wheel_speeds, localization["status"])
+        cov = ep.covariance
+        localization = ep.localization_info(cov)
+        obs = self._observation(believed, cov, step.wheel_speeds, localization["status"])
         info = self._info(step.accepted, step.rejected, collided, true_pose, believed, odometry_pose)
         info["localization"] = localization
         return obs, float(reward), bool(terminated), bool(truncated), info

@@ -22,6 +22,7 @@ Localization modes (:data:`~agvsim.loop.modes.LOCALIZATION_MODES`), the pose
 """
 from __future__ import annotations
 
+import math
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -271,27 +272,28 @@ class ClosedLoop:
             return G @ acc.Q @ G.T
         return self.ekf.covariance()
 
-    def localization_info(self) -> dict:
+    def localization_info(self, covariance: np.ndarray | None = None) -> dict:
         """The localization's state for the agent (``info["localization"]``): ``status``
         (``tracking``, ``lost`` or ``relocalizing``), ``position_sigma`` (m, the largest
         standard deviation of the believed position), ``since_fix`` (s since the last
         accepted target observation, or re-localization), ``reason`` (why lost; None while
         tracking), ``lost_events`` and ``relocalizations`` (counts this episode).
 
-        For ``localization="odometry"`` the status is always ``tracking`` and ``since_fix``
-        the time since the start; for ``"truth"`` σ and ``since_fix`` are 0."""
+        ``covariance``: :attr:`covariance` if the caller has it already (it is not made
+        twice). For ``localization="odometry"`` the status is always ``tracking`` and
+        ``since_fix`` the time since the start; for ``"truth"`` σ and ``since_fix`` are 0."""
         now = self.sim.time
         if self.localization == "truth":
             return {"status": TRACKING, "position_sigma": 0.0, "since_fix": 0.0, "reason": None,
                     "lost_events": 0, "relocalizations": 0}
+        P = self.covariance if covariance is None else covariance
+        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+        sigma = math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
         if self.localization == "odometry":
-            P = self.covariance
-            a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
-            sigma = float(np.sqrt(max(0.5 * (a + d) + np.hypot(0.5 * (a - d), b), 0.0)))
             return {"status": TRACKING, "position_sigma": sigma, "since_fix": now, "reason": None,
                     "lost_events": 0, "relocalizations": 0}
         ekf = self.ekf
-        return {"status": ekf.status, "position_sigma": ekf.position_sigma(), "since_fix": ekf.since_fix(now),
+        return {"status": ekf.status, "position_sigma": sigma, "since_fix": ekf.since_fix(now),
                 "reason": ekf.lost_reason, "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
 
     def kidnap(self, pose) -> None:
