@@ -43,7 +43,7 @@ _LOOP_KEYS = {"physics": "sim", "render": "render", "localize": "localize", "fil
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--env-id", default="agvsim/PlantFloor-v0")
+    parser.add_argument("--env-id", default="agvsim/PlantFloor-v1")
     parser.add_argument("--steps", type=int, default=600, help="timed policy steps (default: %(default)s)")
     parser.add_argument("--localization", default="ekf", choices=LOCALIZATION_MODES)
     parser.add_argument("--observations", default=None, choices=SOURCES,

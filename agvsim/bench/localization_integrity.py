@@ -19,7 +19,8 @@ frames (the raycast backend, the envs' default camera):
     the default route of each shipped map, and must find itself.
 ``wall``
     After ``--settle`` s the vehicle turns to the nearest wall or obstacle and pushes into it
-    for ``--push`` s (wheels spinning), backs off for 2 s, then drives on along the route for
+    for ``--push`` s (wheels spinning), backs off towards where it left the route, then drives on
+    from the nearest route point in sight along the route for
     ``--after`` s.
 
 Per event (kidnap, unknown start, end of the push): seconds from the first refused
@@ -56,7 +57,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--steps", type=int, default=3000, help="policy steps per drive (default: %(default)s)")
     parser.add_argument("--kidnaps", type=int, default=50, help="kidnap trials (default: %(default)s)")
     parser.add_argument("--unknown", type=int, default=20, help="unknown-start trials per map (default: %(default)s)")
-    parser.add_argument("--walls", type=int, default=10, help="wall-push trials (default: %(default)s)")
+    parser.add_argument("--walls", type=int, default=20, help="wall-push trials (default: %(default)s)")
     parser.add_argument("--settle", type=float, default=15.0, help="s driven before the event (default: %(default)s)")
     parser.add_argument("--after", type=float, default=45.0, help="s driven after the event (default: %(default)s)")
     parser.add_argument("--push", type=float, default=60.0, help="s pushing into the wall (default: %(default)s)")
@@ -292,10 +293,22 @@ def _event_trial(experiment: str, trial: int, settle: float, after: float, push:
     else:  # wall
         _drive(loop, pursuit, watch, settle)
         _push_into_wall(loop, watch, push)
-        pursuit.progress = path.project(loop.true_pose[:2], pursuit.progress, window=path.length)
+        pursuit.progress = _rejoin(world_map, path, loop.true_pose[:2])
         watch.event()
         _drive(loop, pursuit, watch, after)
     return {**info, **watch.figures(), **watch.event_figures()}
+
+
+def _rejoin(world_map, path, xy) -> float:
+    """Arc length (m) of the nearest route point in plain sight of ``xy`` (the vehicle may
+    have slid along the wall far from where it left the route)."""
+    best, best_s = math.inf, 0.0
+    for s in np.arange(0.0, path.length, 0.5):
+        p = path.point_at(float(s))
+        d = float(np.hypot(*(p - xy)))
+        if d < best and world_map.line_of_sight(tuple(xy), tuple(p)):
+            best, best_s = d, float(s)
+    return best_s
 
 
 def _push_into_wall(loop, watch, seconds: float) -> None:
@@ -318,6 +331,7 @@ def _push_into_wall(loop, watch, seconds: float) -> None:
             break
         watch.after_step(loop.step(0.0, max(min(2.0 * err, 1.0), -1.0)))
     pushed = 0.0
+    origin = loop.true_pose[:2].copy()  # on the route: backed off to again afterwards
     for _ in range(int((seconds + 30.0) * rate)):
         step = loop.step(0.8, 0.0)
         watch.after_step(step)
@@ -325,7 +339,12 @@ def _push_into_wall(loop, watch, seconds: float) -> None:
             pushed += 1.0 / rate
             if pushed >= seconds:
                 break
-    for _ in range(int(2 * rate)):  # back off the wall before driving on
+    nearest = math.inf
+    for _ in range(int(20 * rate)):  # back off the wall towards where the push started
+        gap = float(np.hypot(*(loop.true_pose[:2] - origin)))
+        if gap < 0.2 or gap > nearest + 0.05:
+            break
+        nearest = min(nearest, gap)
         watch.after_step(loop.step(-0.5, 0.0))
 
 
@@ -395,19 +414,21 @@ def summarize(results: list[dict]) -> dict:
             floors["tracking_p95"] = g["tracking_p95_m"] is not None and g["tracking_p95_m"] <= FLOOR_TRACKING_P95
         else:
             det = [r["detect_s"] for r in rs if r["refused"]]
-            rec_ok = [r["recover_s"] is not None and r["recover_s"] <= FLOOR_RECOVER_S for r in rs]
+            # over the trials in which two distinct targets came into view after the event (the
+            # oracle driver does not always bring them: those are counted in saw_two_share)
+            rec_ok = [r["recover_s"] is not None and r["recover_s"] <= FLOOR_RECOVER_S for r in rs if r["saw_two"]]
             g["detect_s_max"] = max((d for d in det if d is not None), default=None)
             g["detect_within_5s_share"] = (sum(d is not None and d <= FLOOR_DETECT_S for d in det) / len(det)
                                            if det else None)
             g["never_declared"] = sum(1 for r in rs if r["refused"] and not r["declared_lost"])
-            g["recovered_share"] = sum(rec_ok) / len(rs)
+            g["recovered_share"] = sum(rec_ok) / len(rec_ok) if rec_ok else None
             g["recover_s_median"] = (float(np.median([r["recover_s"] for r in rs if r["recover_s"] is not None]))
                                      if any(r["recover_s"] is not None for r in rs) else None)
             g["saw_two_share"] = sum(r["saw_two"] for r in rs) / len(rs)
             if not key.startswith("unknown"):  # in >= 95 % of trials, as the recovery
                 floors["detect_within_5s"] = (g["never_declared"] == 0 and g["detect_within_5s_share"] is not None
                                               and g["detect_within_5s_share"] >= FLOOR_RECOVERED_SHARE)
-            floors["recovered_95"] = g["recovered_share"] >= FLOOR_RECOVERED_SHARE
+            floors["recovered_95"] = g["recovered_share"] is not None and g["recovered_share"] >= FLOOR_RECOVERED_SHARE
         g["floors"] = floors
         out[key] = g
     return out
@@ -426,14 +447,14 @@ def format_table(res: dict) -> str:
     lines = [f"agvsim bench localization-integrity: {res['workers']} workers, {res['wall_s']:.0f} s wall",
              f"machine: {m.get('cpu_model', m.get('processor'))}, {m.get('cpu_count')} CPUs",
              f"{'experiment':18s} {'trials':>6s} {'steps':>7s} {'honest':>8s} {'lost':>6s} {'p95 trk':>8s} "
-             f"{'reloc':>5s} {'wrong':>5s} {'det<=5s':>7s} {'det max':>7s} {'recovered':>9s} {'rec med':>7s} "
+             f"{'reloc':>5s} {'wrong':>5s} {'det<=5s':>7s} {'det max':>7s} {'recovered':>9s} {'saw 2':>5s} {'rec med':>7s} "
              f"{'lost ms':>7s} {'p95':>5s}"]
     for key, g in res["summary"].items():
         lines.append(f"{key:18s} {g['trials']:6d} {g['steps']:7d} {100 * g['honest_share']:7.2f}% "
                      f"{100 * g['lost_share']:5.1f}% {_fmt(g['tracking_p95_m'] and 100 * g['tracking_p95_m'], '7.1f')}c "
                      f"{g['relocalizations']:5d} {g['wrong_relocalizations']:5d} "
                      f"{_pct(g.get('detect_within_5s_share'), 6)} {_fmt(g.get('detect_s_max'), '6.1f')}s "
-                     f"{_pct(g.get('recovered_share'), 8)} "
+                     f"{_pct(g.get('recovered_share'), 8)} {_pct(g.get('saw_two_share'), 4)} "
                      f"{_fmt(g.get('recover_s_median'), '6.1f')}s {_fmt(g['lost_frame_ms_median'], '7.1f')} "
                      f"{_fmt(g['lost_frame_ms_p95'], '5.0f')}")
         bad = [k for k, ok in g["floors"].items() if not ok]
@@ -441,5 +462,5 @@ def format_table(res: dict) -> str:
     lines.append("honest: steps with the true error inside the reported 3-sigma region, or the filter "
                  "reporting itself lost; p95 trk: error while tracking; detect: first refused detection -> "
                  "lost (floor 5 s in >= 95 % of trials); recovered: error <= 10 cm while tracking within 15 s "
-                 "of two distinct targets seen; lost ms: filter ms per frame while lost (median, p95)")
+                 "of two distinct targets seen, over the trials that saw two (saw 2: their share); lost ms: filter ms per frame while lost (median, p95)")
     return "\n".join(lines)
