@@ -22,7 +22,6 @@ Localization modes (:data:`~agvsim.loop.modes.LOCALIZATION_MODES`), the pose
 """
 from __future__ import annotations
 
-import math
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -33,7 +32,7 @@ from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.vision import VisionConfig, targets_from_map
 from agvsim.vehicle.simulation import SimConfig, Simulation, StepResult
 from localizer.filter import (TRACKING, ContactSlip, FilterConfig, FrameResult, GateConfig, Measurement,
-                              OdometryAccumulator, OdometryNoise, PoseEKF, compose_jacobians)
+                              OdometryAccumulator, OdometryNoise, PoseEKF, compose_jacobians, position_sigma)
 from localizer.numeric import check_choice, check_number, check_numbers, wrap_angle
 
 __all__ = ["ClosedLoop", "FusedFrame", "LoopConfig", "LoopStep", "filter_config_for", "odometry_noise_for",
@@ -286,9 +285,7 @@ class ClosedLoop:
         if self.localization == "truth":
             return {"status": TRACKING, "position_sigma": 0.0, "since_fix": 0.0, "reason": None,
                     "lost_events": 0, "relocalizations": 0}
-        P = self.covariance if covariance is None else covariance
-        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
-        sigma = math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
+        sigma = position_sigma(self.covariance if covariance is None else covariance)
         if self.localization == "odometry":
             return {"status": TRACKING, "position_sigma": sigma, "since_fix": now, "reason": None,
                     "lost_events": 0, "relocalizations": 0}

@@ -21,7 +21,7 @@ from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
 from localizer.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, OdometryNoise, arc_motion, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
-from localizer.filter.update import PoseKF, nis, predict_pose, update_pose
+from localizer.filter.update import PoseKF, nis, position_sigma, predict_pose, update_pose
 from localizer.numeric import wrap_angle
 
 __all__ = [
@@ -30,6 +30,6 @@ __all__ = [
     "GATED", "GateConfig", "Hypothesis", "Measurement", "NO_CANDIDATE", "OdometryAccumulator",
     "OdometryNoise", "PoseEKF", "PoseKF", "RelocalizeConfig", "Relocalizer", "TargetMap", "ViewLimits",
     "arc_motion", "associate", "compose", "compose_jacobians", "innovation", "measurement_jacobian", "nis",
-    "pose_from_measurement", "pose_from_measurement_jacobian", "predict_all", "predict_measurement",
+    "pose_from_measurement", "pose_from_measurement_jacobian", "position_sigma", "predict_all", "predict_measurement",
     "predict_pose", "update_pose", "wrap_angle",
 ]

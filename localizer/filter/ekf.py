@@ -71,7 +71,7 @@ from localizer.filter.measurement import Measurement, TargetMap
 from localizer.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, Relocalizer
-from localizer.filter.update import PoseKF, predict_pose, update_pose
+from localizer.filter.update import PoseKF, position_sigma, predict_pose, update_pose
 from localizer.numeric import wrap_angle
 
 __all__ = ["FilterConfig", "FrameResult", "LOST", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING"]
@@ -185,8 +185,7 @@ class PoseEKF:
     def position_sigma(self) -> float:
         """The largest standard deviation of the position (m): √ of the larger eigenvalue of
         the current covariance's P_xy."""
-        P = self.covariance()
-        return _largest_sigma(P.item(0, 0), P.item(1, 0), P.item(1, 1))
+        return position_sigma(self.covariance())
 
     def pose(self) -> np.ndarray:
         """(3,) current pose estimate: the state composed with the queued odometry (θ wrapped)."""
@@ -246,7 +245,7 @@ class PoseEKF:
             return
         cfg = self.config
         P = self.kf.P
-        pos_sigma = _largest_sigma(P.item(0, 0), P.item(1, 0), P.item(1, 1))
+        pos_sigma = position_sigma(P)
         heading_sigma = math.sqrt(max(P.item(2, 2), 0.0))
         reason = None
         if pos_sigma > cfg.lost_position_sigma:
@@ -414,7 +413,3 @@ class PoseEKF:
         self.kf.P = np.asarray(P, dtype=float).copy()
         self._recovered(self.time)
 
-
-def _largest_sigma(a: float, b: float, d: float) -> float:
-    """√ of the larger eigenvalue of the symmetric 2 x 2 ``[[a, b], [b, d]]`` (closed form)."""
-    return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))

@@ -39,7 +39,7 @@ import numpy as np
 from localizer.filter.association import ACCEPTED, GateConfig, associate
 from localizer.filter.measurement import (Measurement, TargetMap, pose_from_measurement,
                                           pose_from_measurement_jacobian)
-from localizer.filter.update import PoseKF, predict_pose, update_pose
+from localizer.filter.update import PoseKF, position_sigma, predict_pose, update_pose
 from localizer.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
@@ -127,9 +127,7 @@ class Hypothesis:
 
     def position_sigma(self) -> float:
         """The largest standard deviation of the position (m)."""
-        P = self.kf.P
-        a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
-        return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
+        return position_sigma(self.kf.P)
 
     def __repr__(self) -> str:
         return f"Hypothesis(x={self.x!r}, matched={sorted(self.matched)!r}, misses={self.misses})"

@@ -18,6 +18,8 @@ before the paths were shared).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
@@ -26,7 +28,7 @@ from localizer.filter.measurement import Measurement, measurement_jacobian, pred
 from localizer.mount import CameraMount
 from localizer.filter.motion import compose, compose_jacobians
 
-__all__ = ["PoseKF", "nis", "predict_pose", "update_pose"]
+__all__ = ["PoseKF", "nis", "position_sigma", "predict_pose", "update_pose"]
 
 
 class PoseKF(ExtendedKalmanFilter):
@@ -83,3 +85,10 @@ def nis(kf: ExtendedKalmanFilter) -> float:
     """
     y = kf.y.reshape(-1)
     return float(y @ np.linalg.solve(kf.S, y))
+
+
+def position_sigma(P) -> float:
+    """The largest standard deviation (m) of the position in a pose covariance ``P`` (3, 3):
+    √ of the larger eigenvalue of P_xy (closed form, on its lower triangle as ``eigvalsh``)."""
+    a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
+    return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
