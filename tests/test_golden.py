@@ -9,7 +9,7 @@
 Any change to these figures is a change of behaviour and must be deliberate:
 re-record the file in the same commit and say why.
 
-Figures added since, not re-recorded: ``time_lost_s`` (issue 13: the seconds the filter spent
+Figures added since, not re-recorded: ``time_lost_s`` (the seconds the filter spent
 lost; 0 in these runs, as ``lost`` is), inserted by hand next to ``lost``.
 
 Floats are compared to :data:`REL` (relative): the same seed gives the same numbers bit for bit

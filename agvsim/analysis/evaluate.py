@@ -34,7 +34,7 @@ __all__ = ["FLOORS", "floors_met", "run_metrics", "summarize"]
 NEES_BOUNDS = (float(chi2.ppf(0.025, 3)), float(chi2.ppf(0.975, 3)))
 NIS_95 = float(chi2.ppf(0.95, 3))
 
-#: Issue 5's quality floors (plant_floor, default route, 1 km, typical odometry, 20 seeds).
+#: The drift-correction quality floors (plant_floor, default route, 1 km, typical odometry, 20 seeds).
 FLOORS = {
     "position_rmse_m": ("<=", 0.03),
     "position_max_m": ("<=", 0.10),

@@ -74,7 +74,7 @@ class RenderedSource:
                 from agvsim.sensors.render import CameraRenderer
             except (ImportError, AttributeError) as exc:
                 raise ValueError("the 'rendered' observation source needs the camera renderer "
-                                 "(agvsim.sensors.render.CameraRenderer, issue 4), which is not available here "
+                                 "(agvsim.sensors.render.CameraRenderer), which is not available here "
                                  f"({exc}); use --observations synthetic or geometric") from None
             self._renderer = CameraRenderer(self.map, camera=self.camera, mount=self.vision.mount,
                                             backend=self.backend)

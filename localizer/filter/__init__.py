@@ -1,4 +1,4 @@
-"""Pose filter: an EKF fusing wheel odometry with two-bar target observations (issue 5).
+"""Pose filter: an EKF fusing wheel odometry with two-bar target observations.
 
 Plain data in, plain data out; imports neither ``agvsim`` nor ``envs``.
 

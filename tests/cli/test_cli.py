@@ -94,7 +94,7 @@ def test_importing_packages_opens_no_gl():
 
 
 def test_importing_the_env_and_filter_stack_imports_no_gl_or_opencv():
-    """What an env process imports (issue 12: memory per env process); the run itself is
+    """What an env process imports (memory per env process); the run itself is
     ``tests/envs/test_env_process.py``."""
     code = ("import sys, envs, localizer, localizer.filter, agvsim.sensors.rendered, agvsim.sensors.render.renderer, "
             "agvsim.sensors.render.raycast, agvsim.sensors.render.textures; "

@@ -1,6 +1,6 @@
 """An env process with rendered observations on the raycast backend imports only what it uses.
 
-Issue 12: peak memory per env process. OpenGL and pyrender are the other backend's; OpenCV is
+Peak memory per env process. OpenGL and pyrender are the other backend's; OpenCV is
 not needed by the raycaster's default frame (its texture noise, mip levels and motion-blur
 rotations are numpy). filterpy's EKF and scipy's chi-squared gate are the filter's own, so
 ``filterpy.kalman`` and ``scipy.stats`` are imported, as they should be. Run in a fresh

@@ -1,4 +1,4 @@
-"""Issue 13, part 4: the localization where users look: ``-v1``'s ``status``, ``info["localization"]``,
+"""The localization where users look: ``-v1``'s ``status``, ``info["localization"]``,
 ``reset(options=...)`` (start pose, believed pose) and ``kidnap``."""
 from __future__ import annotations
 

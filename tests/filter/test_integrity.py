@@ -1,4 +1,4 @@
-"""Issue 13: the estimate never lies. Slip-aware motion noise, lost detection far from the truth,
+"""The estimate never lies. Slip-aware motion noise, lost detection far from the truth,
 global re-localization (kidnapped robot, symmetric maps), the status the filter reports."""
 from __future__ import annotations
 

@@ -178,7 +178,7 @@ def test_lens_distortion_edge_points_undistorted(rng):
 def test_saturated_blurred_alpha(polarity, blur):
     """Saturated light clips the bright side of every edge; with some blur the clipped-erf
     edge model (blur and levels shared by the target's edges) still recovers each edge, so
-    a near-frontal target 60+ rows tall keeps alpha well inside issue 3's 3 deg floor (the
+    a near-frontal target 60+ rows tall keeps alpha well inside the localizer's 3 deg floor (the
     gradient centroids alone, with a common dark-side shift, gave 2-3 deg here)."""
     cam = Camera.thesis(50)
     pose = TargetPose(8.73, -0.068, -0.12, -0.038)

@@ -132,7 +132,7 @@ def _renderer_works() -> bool:
 
 
 @pytest.mark.render
-@pytest.mark.skipif(not _renderer_works(), reason="camera renderer (issue 4) not available")
+@pytest.mark.skipif(not _renderer_works(), reason="camera renderer not available")
 def test_short_rendered_loop(corridor):
     """The first 5 m of corridor (target C01 in view) with rendered frames and the real localizer."""
     cfg = MissionConfig(vision_config=CORRIDOR_VISION, distance=5.0)

@@ -1,4 +1,4 @@
-"""Issue 13 in the closed loop: pushing into a wall and a kidnapped vehicle, on plant_floor with
+"""Localization integrity in the closed loop: pushing into a wall and a kidnapped vehicle, on plant_floor with
 the geometric source (fast; the rendered frames are `agvsim bench localization-integrity`'s)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 13, part 4: ``agvsim drift`` and ``agvsim demo`` report time lost and recoveries."""
+"""``agvsim drift`` and ``agvsim demo`` report time lost and recoveries."""
 from __future__ import annotations
 
 import dataclasses

@@ -3,7 +3,7 @@
 A decal's summed-area table is of its texels at their information content (blocks of equal
 texels are one texel) and decals with the same texels share one table, yet every box integral
 is that of the scene's full-resolution texture; the plant floor's tables stay small (memory
-per env process, issue 12).
+per env process).
 """
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 ``dst[a:b] = src`` with an array ``src`` makes numba compile a shape check whose error
 message is built at run time (~1,700 LLVM instructions), linked into every top-level
 kernel whose call tree has one; a kernel loaded from numba's cache keeps its LLVM module
-in memory, so each such kernel costs an env process about 0.5 MB more (issue 12,
+in memory, so each such kernel costs an env process about 0.5 MB more (the memory floor,
 BENCHMARKS.md). The kernels copy with :mod:`localizer._kernels.arrays` instead; a scalar
 (``dst[:] = 0.0``, ``np.inf``) has no shape to check.
 """
