@@ -17,7 +17,7 @@ import numpy as np
 from agvsim.sensors.render._raycast_kernels import box_edges, decal_cover, raster_lookup, sat_cell
 from localizer._jit import fast_inline as inline
 
-__all__ = ["LIGHT_ROWS", "shade_face"]
+__all__ = ["LIGHT_ROWS", "scratch_size", "shade_face"]
 
 LIGHT_ROWS = 32.0  # px between the rows where a face's irradiance is evaluated (linear between)
 
@@ -65,11 +65,12 @@ def _face_irradiance(light, f, s, z_top, dz, n, out):
 
 
 @inline
-def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, scale, buf):
-    """Level ``lv`` of texture ``k`` along a face span: ``buf[m]`` = ``scale`` x the mean of the bilinear
-    samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated if
-    tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach. Returns
-    ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` in ``buf`` of image row ``y``.
+def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, scale, buf, bo, cap):
+    """Level ``lv`` of texture ``k`` along a face span: ``buf[bo + m]`` = ``scale`` x the mean of the
+    bilinear samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated
+    if tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach (``cap`` at most).
+    Returns ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` (from ``bo``) of image
+    row ``y``.
 
     The level is stored column by column (``tex.column_major[k]``), so this reads four
     contiguous runs of texels (the two texel columns either side of each sample)."""
@@ -83,7 +84,7 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, sca
     ra = a + b * y_lo
     rb = a + b * y_hi
     k_lo = int(math.floor(min(ra, rb))) - 1
-    n = min(int(math.floor(max(ra, rb))) + 2 - k_lo + 1, buf.shape[0])
+    n = min(int(math.floor(max(ra, rb))) + 2 - k_lo + 1, cap)
     # the two subsample columns: texel column coordinates and weights
     xa = (u_c - u_half) * mw - 0.5
     xb = (u_c + u_half) * mw - 0.5
@@ -120,58 +121,61 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, sca
             rr = 0 if r < 0 else mh - 1
             run = min(n - q, -r) if r < 0 else n - q
             edge = wa0 * m[ca0 + rr] + wa1 * m[ca1 + rr] + wb0 * m[cb0 + rr] + wb1 * m[cb1 + rr]
-            buf[q:q + run] = edge
+            o = np.uint64(bo + q)
+            for t in range(np.uint64(run)):
+                buf[o + t] = edge
             q += run
             continue
         else:
             rr = r
             run = min(n - q, mh - rr)
-        # four contiguous runs (slices: the loop is vectorised)
-        a0 = m[ca0 + rr:ca0 + rr + run]
-        a1 = m[ca1 + rr:ca1 + rr + run]
-        b0 = m[cb0 + rr:cb0 + rr + run]
-        b1 = m[cb1 + rr:cb1 + rr + run]
-        out = buf[q:q + run]
-        for t in range(run):
-            out[t] = wa0 * a0[t] + wa1 * a1[t] + wb0 * b0[t] + wb1 * b1[t]
+        # four contiguous runs (unsigned indices, no views: the loop is vectorised)
+        o = np.uint64(bo + q)
+        a0 = np.uint64(ca0 + rr)
+        a1 = np.uint64(ca1 + rr)
+        b0 = np.uint64(cb0 + rr)
+        b1 = np.uint64(cb1 + rr)
+        for t in range(np.uint64(run)):
+            buf[o + t] = wa0 * m[a0 + t] + wa1 * m[a1 + t] + wb0 * m[b0 + t] + wb1 * m[b1 + t]
         q += run
     return n, a - k_lo, b
 
 
 @inline
-def _column_at(buf, t, n):
-    """Linear interpolation of the first ``n`` entries of ``buf`` at coordinate ``t`` (clamped)."""
+def _column_at(buf, o, t, n):
+    """Linear interpolation of the ``n`` entries ``buf[o:o + n]`` at coordinate ``t`` (clamped)."""
     if t < 0.0:
         t = 0.0
     if t > n - 1.000001:
         t = n - 1.000001
     q = int(t)
-    return buf[q] + (buf[q + 1] - buf[q]) * (t - q)
+    a = np.uint64(o + q)
+    return buf[a] + (buf[a + _U1] - buf[a]) * (t - q)
 
 
 @inline
-def _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, ym):
+def _own_reflectance(buf, b0, n0, t0a, t0b, b1, n1, t1a, t1b, ym):
     """The face's own reflectance at row coordinate ``ym``: its two subsample rows
-    (``ym -+ 1/4``), trilinear between the span's two levels (``buf0``, ``buf1``: their texel
-    columns, weighted; coordinate ``ta + tb y`` of image row ``y``)."""
+    (``ym -+ 1/4``), trilinear between the span's two levels (their texel columns, weighted, at
+    ``buf[b0:]`` and ``buf[b1:]``; coordinate ``ta + tb y`` of image row ``y``)."""
     ta = ym - 0.25
     tb = ym + 0.25
-    return 0.5 * (_column_at(buf0, t0a + t0b * ta, n0) + _column_at(buf0, t0a + t0b * tb, n0)
-                  + _column_at(buf1, t1a + t1b * ta, n1) + _column_at(buf1, t1a + t1b * tb, n1))
+    return 0.5 * (_column_at(buf, b0, t0a + t0b * ta, n0) + _column_at(buf, b0, t0a + t0b * tb, n0)
+                  + _column_at(buf, b1, t1a + t1b * ta, n1) + _column_at(buf, b1, t1a + t1b * tb, n1))
 
 
 @inline
-def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0, t0a, t0b,
-                buf1, n1, t1a, t1b, d_lo, d_hi):
+def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf, b0, n0, t0a, t0b,
+                b1, n1, t1a, t1b, d_lo, d_hi):
     """``(cov, reflectance, ym)`` of face ``f`` in pixel row ``i`` (the part ``y0 .. y1`` covers);
-    ``buf0``, ``buf1``: the span's texel columns, weighted by their trilinear weights."""
+    ``buf[b0:]``, ``buf[b1:]``: the span's texel columns, weighted by their trilinear weights."""
     ya = max(i - 0.5, y0)
     yb = min(i + 0.5, y1)
     cov = yb - ya
     if cov <= 0.0:
         return 0.0, 0.0, 0.0
     ym = 0.5 * (ya + yb)
-    alb = _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, ym)
+    alb = _own_reflectance(buf, b0, n0, t0a, t0b, b1, n1, t1a, t1b, ym)
     z_top = hc - (ya - cy) * zpy
     z_bot = hc - (yb - cy) * zpy
     if z_top > d_lo and z_bot < d_hi:
@@ -188,8 +192,8 @@ def _sat_row_span(sat, row, ja, fa, jb, fb):
 
 
 @inline
-def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, buf0, n0, t0a, t0b, buf1, n1,
-                t1a, t1b, irr, y0, inv_step, n_l, acc):
+def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, buf, b0, n0, t0a, t0b, b1, n1,
+                t1a, t1b, irr, y0, inv_step, n_l, acc, cover):
     """Rows ``lo .. hi`` of a face span that covers them whole and that decals reach: the
     face's own reflectance (as :func:`_face_pixel`) where no decal is, each decal's printed
     face integrated exactly over the part of the pixel it covers (as
@@ -198,9 +202,11 @@ def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, bu
 
     Decal by decal: its columns over the footprint ``s_lo .. s_hi`` (m along the face) are
     found once, then each row's integral is the difference of two rows of the summed-area
-    table, each read at those two columns."""
+    table, each read at those two columns. ``cover``: ``(2 (hi + 1 - lo),)`` float64 scratch."""
     n = hi + 1 - lo
-    cover = np.zeros(2 * n)  # [q]: sum of coverage x printed mean; [n + q]: sum of coverage
+    # cover[q]: sum of coverage x printed mean; cover[n + q]: sum of coverage
+    for q in range(2 * n):
+        cover[q] = 0.0
     if s_hi - s_lo < 1e-9:
         s_hi = s_lo + 1e-9
     inv_sw = 1.0 / (s_hi - s_lo)
@@ -248,7 +254,7 @@ def _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, lo, hi, gain, bu
             cover[n + q] += (b - a) * inv_sw * share
     for q in range(n):
         i = lo + q
-        own = _own_reflectance(buf0, n0, t0a, t0b, buf1, n1, t1a, t1b, float(i))
+        own = _own_reflectance(buf, b0, n0, t0a, t0b, b1, n1, t1a, t1b, float(i))
         acc[i] += gain * (own * (1.0 - cover[n + q]) + cover[q]) * _irr_at(irr, float(i), y0, inv_step, n_l)
 
 
@@ -261,15 +267,24 @@ def _irr_at(irr, ym, y0, inv_step, n_l):
 
 
 @inline
+def scratch_size(h):
+    """Length of :func:`shade_face`'s float64 scratch for an image ``h`` rows high: the irradiance
+    samples (``h + 2``), the two texel columns (``4 h + 8`` each), the decal rows' coverage
+    (``2 h``)."""
+    return h + 2 + 2 * (4 * h + 8) + 2 * h
+
+
+@inline
 def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc, depth, write_depth,
-               irr_scratch):
+               scratch):
     """Add ``gain`` x the radiance of face ``f`` (depth ``z`` m along the axis) over rows
     ``y0 .. y1`` of the (sub-)column ``x0 .. x1`` to ``acc`` ``(H,)``; ``depth`` ``(H,)`` gets
-    ``z`` at the pixel centres it covers when ``write_depth``. ``irr_scratch``: ``(H + 2 + 2 (4 H + 8),)``
-    float64 (irradiance samples, two texel columns)."""
+    ``z`` at the pixel centres it covers when ``write_depth``. ``scratch``:
+    ``(scratch_size(H),)`` float64 (irradiance samples, two texel columns, decal coverage)."""
     h_img = view.height
-    buf0 = irr_scratch[h_img + 2:h_img + 2 + 4 * h_img + 8]
-    buf1 = irr_scratch[h_img + 2 + 4 * h_img + 8:]
+    cap = 4 * h_img + 8
+    b0 = h_img + 2  # the texel columns' offsets in the scratch
+    b1 = b0 + cap
     fy = view.fy
     cy = view.cy
     hc = view.cam_z
@@ -288,10 +303,10 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     n_l = int(math.ceil((y1 - y0) / LIGHT_ROWS)) + 1
     step = (y1 - y0) / (n_l - 1)
     inv_step = 1.0 / step
-    _face_irradiance(light, f, s_c, hc - (y0 - cy) * zpy, step * zpy, n_l, irr_scratch)
+    _face_irradiance(light, f, s_c, hc - (y0 - cy) * zpy, step * zpy, n_l, scratch)
     # the texture, filtered as the pyrender reference samples it (2 x 2 supersampling, each
     # sample trilinear at the supersampled footprint): u is fixed across the span and v
-    # linear in the row, so each mip level is a column of texels along the span (buf0, buf1)
+    # linear in the row, so each mip level is a column of texels along the span (at b0, b1)
     tk = faces.texture[f]
     du = (faces.u1[f] - faces.u0[f]) / faces.length[f]
     dvz = (faces.v1[f] - faces.v0[f]) / faces.height[f]
@@ -307,8 +322,9 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     t_hi = max(y0, y1) + 1.0
     # (each weighted by its trilinear weight)
     n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, 1.0 - w1,
-                                 buf0)
-    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1, buf1)
+                                 scratch, b0, cap)
+    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1,
+                                 scratch, b1, cap)
     # the rows of decals that this column's footprint on the face crosses
     d_lo = 1e300
     d_hi = -1e300
@@ -338,16 +354,16 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     n_band = max(b_hi + 1 - b_lo, 0)
     for q in range(n_top + n_bot):
         i = i_lo + q if q < n_top else bot + q - n_top
-        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, buf0, n0,
-                                   t0a, t0b, buf1, n1, t1a, t1b, d_lo, d_hi)
+        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, scratch, b0, n0,
+                                   t0a, t0b, b1, n1, t1a, t1b, d_lo, d_hi)
         if cov > 0.0:
-            acc[i] += gain * cov * alb * _irr_at(irr_scratch, ym, y0, inv_step, n_l)
+            acc[i] += gain * cov * alb * _irr_at(scratch, ym, y0, inv_step, n_l)
     if n_band > 0:
-        _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, buf0, n0, t0a, t0b, buf1, n1,
-                    t1a, t1b, irr_scratch, y0, inv_step, n_l, acc)
+        _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, scratch, b0, n0, t0a, t0b, b1,
+                    n1, t1a, t1b, scratch, y0, inv_step, n_l, acc, scratch[b1 + cap:])
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
-    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
-    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr_scratch, y0, step, n_l, acc)
+    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
+    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
     if write_depth:  # the pixel centres inside the span: y0 <= i < y1
         for i in range(max(int(math.ceil(y0)), i_lo), min(int(math.ceil(y1)) - 1, i_hi) + 1):
             depth[i] = z
@@ -357,55 +373,59 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
 FIXED_BITS = 32
 _FIXED_ONE = float(1 << FIXED_BITS)
 _FIXED_INV = 1.0 / _FIXED_ONE
-_FIXED_MASK = (1 << FIXED_BITS) - 1
+_U1 = np.uint64(1)
+_UBITS = np.uint64(FIXED_BITS)
+_UMASK = np.uint64((1 << FIXED_BITS) - 1)
 
 
 @inline
 def _fixed(x):
-    """``x >= 0`` texels as a fixed-point integer (:data:`FIXED_BITS` fractional bits)."""
-    return np.int64(x * _FIXED_ONE)
+    """``x >= 0`` texels as a fixed-point integer (:data:`FIXED_BITS` fractional bits), unsigned."""
+    return np.uint64(np.int64(x * _FIXED_ONE))
 
 
 @inline
-def _lerp_fixed(buf, p):
-    """``buf`` interpolated linearly at the fixed-point coordinate ``p >= 0``."""
-    q = p >> FIXED_BITS
-    return buf[q] + (buf[q + 1] - buf[q]) * ((p & _FIXED_MASK) * _FIXED_INV)
+def _lerp_fixed(buf, o, p):
+    """``buf[o:]`` interpolated linearly at the fixed-point coordinate ``p`` (unsigned: array
+    indices without a test for negative ones)."""
+    q = o + (p >> _UBITS)
+    return buf[q] + (buf[q + _U1] - buf[q]) * (np.int64(p & _UMASK) * _FIXED_INV)
 
 
 @inline
-def _plain_rows(lo, hi, g, buf0, t0a, t0b, buf1, t1a, t1b, irr, y0, step, n_l, acc):
+def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc):
     """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: ``g`` x the
-    sum of the two subsamples of each level (``buf0``, ``buf1``: the levels' texel columns,
-    weighted) times the irradiance.
+    sum of the two subsamples of each level (``buf[b0:]``, ``buf[b1:]``: the levels' texel
+    columns, weighted) times the irradiance (``buf[:n_l]``).
 
     The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
     subsamples need no clamping; their coordinates step by a constant per row, in fixed
     point (:data:`FIXED_BITS` fractional bits: 2e-10 texel, no float-to-int conversion per
-    sample); the irradiance is stepped linearly within each of its segments (``step`` rows
-    from ``y0``)."""
+    sample; unsigned, a negative step wrapping modulo 2^64); the irradiance is stepped
+    linearly within each of its segments (``step`` rows from ``y0``)."""
     if hi < lo:
         return
     d0 = 0.25 * t0b
     d1 = 0.25 * t1b
     m0 = min(max(int((lo - y0) / step), 0), n_l - 2)
     m1 = min(max(int((hi - y0) / step), 0), n_l - 2)
-    # the subsamples' coordinates at row lo and their step per row (a negative step is exact
-    # in two's complement: the coordinates stay >= 0 over the rows)
+    # the subsamples' coordinates at row lo and their step per row
     pa = _fixed(t0a + t0b * lo - d0)
     pb = _fixed(t0a + t0b * lo + d0)
     pc = _fixed(t1a + t1b * lo - d1)
     pd = _fixed(t1a + t1b * lo + d1)
-    s0 = np.int64(t0b * _FIXED_ONE)
-    s1 = np.int64(t1b * _FIXED_ONE)
+    s0 = np.uint64(np.int64(t0b * _FIXED_ONE))
+    s1 = np.uint64(np.int64(t1b * _FIXED_ONE))
+    o0 = np.uint64(b0)
+    o1 = np.uint64(b1)
     for m in range(m0, m1 + 1):
         a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
         b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
-        slope = g * (irr[m + 1] - irr[m]) / step
-        e = g * irr[m] + (a - (y0 + m * step)) * slope
-        for i in range(a, b + 1):
-            acc[i] += (_lerp_fixed(buf0, pa) + _lerp_fixed(buf0, pb) + _lerp_fixed(buf1, pc)
-                       + _lerp_fixed(buf1, pd)) * e
+        slope = g * (buf[m + 1] - buf[m]) / step
+        e = g * buf[m] + (a - (y0 + m * step)) * slope
+        for i in range(np.uint64(a), np.uint64(b + 1)):
+            acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb) + _lerp_fixed(buf, o1, pc)
+                       + _lerp_fixed(buf, o1, pd)) * e
             e += slope
             pa += s0
             pb += s0

@@ -35,7 +35,7 @@ def floor_level(tex, fk, foot):
 
 
 @jit
-def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth):
+def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, idx, wts):
     """Draw the floor into ``radiance`` over each row's range of columns.
 
     Args:
@@ -49,6 +49,7 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth):
             (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
+        idx, wts: ``(4 W,)`` uint64 and float64 scratch.
 
     A row is drawn in two loops: the first, vectorised, takes each pixel's texel and raster
     coordinates (linear in the column, thesis §3.5) to the flat indices and bilinear weights of
@@ -85,8 +86,6 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth):
     # per pixel of a row, 4 apart (one pointer each in the gather loop): the first texel's flat
     # index, the steps to the next texel along u and up v (the tile wraps: uint64 arithmetic
     # modulo 2^64), the first lighting cell's flat index; the weights along u, v, x, y
-    idx = np.empty(4 * w, np.uint64)
-    wts = np.empty(4 * w)
     for i in range(h):
         j_lo = row_lo[i]
         j_hi = row_hi[i]

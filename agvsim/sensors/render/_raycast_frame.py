@@ -21,10 +21,11 @@ from agvsim.sensors.render._raycast_face import shade_face
 from agvsim.sensors.render._raycast_floor import floor_level, floor_rows
 from agvsim.sensors.render._raycast_kernels import (FAR, MAX_HITS, MAX_SPANS, bin_solids, cast_ray, lamp_irradiance,
                                                     raster_lookup, same_spans)
+from localizer._jit import borrowed
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["render_view", "shade_column"]
+__all__ = ["COLUMN_BLOCK", "render_view", "shade_column"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2
 COLUMN_BLOCK = 16  # columns shaded between two row-wise stores (16 float32: one cache line)
@@ -118,10 +119,10 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
 
 
 @inline
-def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth, floor_col,
-                drawn_col, floor_depth, skip_lo, skip_hi):
-    """A span of the floor in one column: the pixels it covers whole and the floor pass drew
-    (``drawn_col``, the pass's ``floor_col``), the others from :func:`_shade_flat`; rows
+def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth, floor_img,
+                drawn, j, floor_depth, skip_lo, skip_hi):
+    """A span of the floor in column ``j``: the pixels it covers whole and the floor pass drew
+    (``drawn[j]``, the pass's ``floor_img[:, j]``), the others from :func:`_shade_flat`; rows
     ``skip_lo .. skip_hi`` (whole, drawn) not at all (the caller takes them from the floor pass)."""
     i_lo = max(int(math.floor(y0 + 0.5)), 0)
     i_hi = min(int(math.floor(y1 + 0.5)), view.height - 1)
@@ -130,8 +131,8 @@ def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, de
     for i in range(i_lo, i_hi + 1):
         if skip_lo <= i <= skip_hi:
             continue
-        if f_lo <= i <= f_hi and drawn_col[i]:
-            acc[i] += weight * floor_col[i]
+        if f_lo <= i <= f_hi and drawn[j, i]:
+            acc[i] += weight * floor_img[i, j]
             if write_depth:
                 depth[i] = floor_depth[i]
         else:  # a pixel the span covers in part (sampled where it does), or one the pass did not draw
@@ -143,20 +144,23 @@ def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, de
 
 
 @inline
-def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y1, sp_kind, sp_id, sp_val,
-                 x0, x1, weight, acc, depth, write_depth, irr_scratch, floor_col, drawn_col, floor_depth, skip_lo,
+def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y1, sp_val, sp_kind, sp_id, ko,
+                 x0, x1, weight, acc, depth, write_depth, scratch, floor_img, drawn, j, floor_depth, skip_lo,
                  skip_hi):
     """Add ``weight`` x the radiance of the spans of the (sub-)column ``x0 .. x1`` of column
     ``j`` to ``acc``.
 
     Args:
+        ns, sp_y0, sp_y1, sp_val: the spans: rows and value of span ``k`` at ``k``;
+            sp_kind, sp_id: their kind and id at ``ko + k`` (:func:`cast_ray`).
         acc: ``(H,)`` float64 radiance accumulator of the column.
         depth: ``(H,)`` float32 depth at the pixel centres (m along the axis, 0 = nothing),
             written when ``write_depth``.
-        irr_scratch: ``(H + 2 + 2 (4 H + 8),)`` float64 scratch.
-        floor_col, drawn_col, floor_depth: the column's floor from the floor pass
-            (:func:`agvsim.sensors.render._raycast_floor.floor_rows`): radiance ``(H,)``, which
-            rows it drew ``(H,)`` uint8, the floor's depth per row ``(H,)``.
+        scratch: ``(scratch_size(H),)`` float64 (:func:`~agvsim.sensors.render._raycast_face.shade_face`).
+        floor_img, drawn, floor_depth: the floor from the floor pass
+            (:func:`agvsim.sensors.render._raycast_floor.floor_rows`): radiance ``(H, W)``
+            (column ``j`` read), which rows of each column it drew ``(W, H)`` uint8, the floor's
+            depth per row ``(H,)``.
         skip_lo, skip_hi: rows a floor span covers whole and the pass drew that are left out
             (neither ``acc`` nor ``depth`` written there; none if ``skip_hi < skip_lo``).
     """
@@ -166,15 +170,16 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
         y1 = sp_y1[k]
         if y1 <= y0:
             continue
-        kind = sp_kind[k]
+        kind = sp_kind[ko + k]
+        sid = sp_id[ko + k]
         if kind == _FACE:
-            shade_face(view, faces, decals, tex, light, sp_id[k], sp_val[k], y0, y1, x0, x1, weight, acc, depth,
-                        write_depth, irr_scratch)
-        elif kind == _FLAT and sp_id[k] < 0:
+            shade_face(view, faces, decals, tex, light, sid, sp_val[k], y0, y1, x0, x1, weight, acc, depth,
+                       write_depth, scratch)
+        elif kind == _FLAT and sid < 0:
             _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth,
-                        floor_col, drawn_col, floor_depth, skip_lo, skip_hi)
+                        floor_img, drawn, j, floor_depth, skip_lo, skip_hi)
         elif kind == _FLAT:
-            _shade_flat(view, tex, light, floor, solids, sp_id[k], sp_val[k], y0, y1, x0, x1, weight, acc, depth,
+            _shade_flat(view, tex, light, floor, solids, sid, sp_val[k], y0, y1, x0, x1, weight, acc, depth,
                         write_depth)
         else:
             i_lo = max(int(math.floor(y0 + 0.5)), 0)
@@ -201,45 +206,62 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
 
 
 @jit
-def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth):
+def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth, work):
     """Draw one level frame.
 
     Args:
         view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
         radiance: out ``(H, W)`` float32, radiance (relative).
         depth: out ``(H, W)`` float32, depth (m along the optical axis, 0 = nothing).
+        work: the :class:`~agvsim.sensors.render.ray_records.FrameScratch` for ``W`` x ``H``
+            (:data:`MAX_SPANS`, :data:`MAX_HITS`, :data:`COLUMN_BLOCK`, ``scratch_size(H)``).
 
     The column pass shades each column into contiguous scratch and stores blocks of
     :data:`COLUMN_BLOCK` columns a row at a time (no transposed copy of the frame afterwards).
     The floor pass draws into ``radiance``; where a column's largest floor span covers the rows
     whole and the pass drew them, the column leaves its values there (the sum it would take, 0 +
     1 x the pass's value, is that value) and stores only the floor's depth.
+
+    Every array argument is used :func:`~localizer._jit.borrowed` (the caller holds them):
+    the inlined helpers take records of arrays per ray, column and span, and counting
+    references to them would cost a tenth of the frame.
     """
+    solids = borrowed(solids)
+    faces = borrowed(faces)
+    decals = borrowed(decals)
+    tex = borrowed(tex)
+    light = borrowed(light)
+    radiance = borrowed(radiance)
+    depth = borrowed(depth)
+    work = borrowed(work)
     w = view.width
     h = view.height
     start, items = bin_solids(view, solids)
-    hit_in = np.empty(MAX_HITS)
-    hit_out = np.empty(MAX_HITS)
-    hit_solid = np.empty(MAX_HITS, np.int64)
-    hit_edge = np.empty(MAX_HITS, np.int64)
+    hit_in = work.hit_in
+    hit_out = work.hit_out
+    hit_solid = work.hit_solid
+    hit_edge = work.hit_edge
     # the spans of every column edge ray (edge r at x = r - 0.5), ray r's at offset r * MAX_SPANS
-    e_y0 = np.empty((w + 1) * MAX_SPANS)
-    e_y1 = np.empty((w + 1) * MAX_SPANS)
-    e_kind = np.empty((w + 1) * MAX_SPANS, np.int64)
-    e_id = np.empty((w + 1) * MAX_SPANS, np.int64)
-    e_val = np.empty((w + 1) * MAX_SPANS)
-    e_n = np.empty(w + 1, np.int64)
+    e_y0 = work.e_y0
+    e_y1 = work.e_y1
+    e_kind = work.e_kind
+    e_id = work.e_id
+    e_val = work.e_val
+    e_n = work.e_n
     for r in range(w + 1):
         c = max(r - 1, 0)  # the column left of the ray (its solids' list reaches 0.51 px beyond it)
-        cand = items[start[c]:]
-        n_cand = start[c + 1] - start[c]
-        o = r * MAX_SPANS
-        e_n[r] = cast_ray(view, solids, floor, r - 0.5, cand, n_cand, hit_in, hit_out, hit_solid, hit_edge,
-                          e_y0[o:], e_y1[o:], e_kind[o:], e_id[o:], e_val[o:])
+        e_n[r] = cast_ray(view, solids, floor, r - 0.5, items, start[c], start[c + 1] - start[c], hit_in, hit_out,
+                          hit_solid, hit_edge, e_y0, e_y1, e_kind, e_id, e_val, r * MAX_SPANS)
     # the rows of each column where some edge ray sees the floor whole: the floor pass draws them
-    drawn_t = np.zeros((w, h), np.uint8)
-    row_lo = np.full(h, w, np.int64)  # the first and last column to draw in each row
-    row_hi = np.full(h, -1, np.int64)
+    drawn_t = work.drawn
+    for j in range(w):
+        for i in range(h):
+            drawn_t[j, i] = 0
+    row_lo = work.row_lo  # the first and last column to draw in each row
+    row_hi = work.row_hi
+    for i in range(h):
+        row_lo[i] = w
+        row_hi[i] = -1
     for r in range(w + 1):  # edge ray r bounds columns r - 1 and r (one of them at the image's sides)
         ja = max(r - 1, 0)
         jb = min(r, w - 1)
@@ -250,46 +272,46 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
                 hi = min(int(math.floor(e_y1[o + k] - 0.5)), h - 1)
                 if hi < lo:
                     continue
-                drawn_t[ja, lo:hi + 1] = 1
-                drawn_t[jb, lo:hi + 1] = 1
-                lo_rows = row_lo[lo:hi + 1]  # slices: the loop below is vectorised
-                hi_rows = row_hi[lo:hi + 1]
-                for q in range(hi + 1 - lo):
-                    lo_rows[q] = min(lo_rows[q], ja)
-                    hi_rows[q] = jb  # the rays come in column order
-    floor_depth = np.empty(h, np.float32)
-    floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth)
-    my0 = np.empty(MAX_SPANS)
-    my1 = np.empty(MAX_SPANS)
-    mkind = np.empty(MAX_SPANS, np.int64)
-    mid = np.empty(MAX_SPANS, np.int64)
-    mval = np.empty(MAX_SPANS)
-    acc = np.zeros(h)
-    dcol = np.zeros(h, np.float32)
-    scratch = np.empty(h + 2 + 2 * (4 * h + 8))  # irradiance samples, two texel columns
+                for i in range(np.uint64(lo), np.uint64(hi + 1)):  # unsigned: the loop is vectorised
+                    drawn_t[ja, i] = 1
+                    drawn_t[jb, i] = 1
+                    row_lo[i] = min(row_lo[i], ja)
+                    row_hi[i] = jb  # the rays come in column order
+    floor_depth = work.floor_depth
+    floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, work.floor_idx, work.floor_wts)
+    my0 = work.my0
+    my1 = work.my1
+    mkind = work.mkind
+    mid = work.mid
+    mval = work.mval
+    acc = work.acc
+    dcol = work.dcol
+    for i in range(h):
+        acc[i] = 0.0
+        dcol[i] = 0.0
+    scratch = work.shade  # irradiance samples, two texel columns, decal coverage
     sub = max(view.subcolumns, 1)
     # columns are shaded in blocks of COLUMN_BLOCK and their radiance and depth stored a row of
     # the block at a time (a column's own stride is a power of two: its cache lines would share
     # a few sets of the cache). Of the floor, a column's largest span leaves the rows it covers
     # whole where the floor pass drew them (keep_lo .. keep_hi): there the pass's radiance stays
     # in the frame, as it is (0 + 1 x it, the column's sum) and the depth is the floor's row's
-    blk_rad = np.empty((COLUMN_BLOCK, h), np.float32)
-    blk_dep = np.empty((COLUMN_BLOCK, h), np.float32)
-    keep_lo = np.empty(COLUMN_BLOCK, np.int64)
-    keep_hi = np.empty(COLUMN_BLOCK, np.int64)
+    blk_rad = work.blk_rad
+    blk_dep = work.blk_dep
+    keep_lo = work.keep_lo
+    keep_hi = work.keep_hi
     for j0 in range(0, w, COLUMN_BLOCK):
         nb = min(COLUMN_BLOCK, w - j0)
         for q in range(nb):
             j = j0 + q
-            floor_col = radiance[:, j]  # the floor pass's (the block is stored after its columns)
+            # the floor pass's radiance[:, j] is read before the block is stored
             oa = j * MAX_SPANS
             ob = oa + MAX_SPANS
             n_a = e_n[j]
             n_b = e_n[j + 1]
-            drawn_col = drawn_t[j]
             s_lo = h
             s_hi = -1
-            if same_spans(n_a, e_kind[oa:], e_id[oa:], n_b, e_kind[ob:], e_id[ob:]):
+            if same_spans(e_kind, e_id, n_a, oa, n_b, ob):
                 for k in range(n_b):
                     my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
                     my1[k] = 0.5 * (e_y1[oa + k] + e_y1[ob + k])
@@ -319,33 +341,31 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
                     s_lo = h
                     s_hi = -1
                 _zero_outside(acc, s_lo, s_hi)
-                shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, e_kind[ob:], e_id[ob:],
-                             mval, j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_col, drawn_col, floor_depth,
+                shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
+                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, radiance, drawn_t, j, floor_depth,
                              s_lo, s_hi)
                 for i in range(s_lo, s_hi + 1):  # as the floor span would have written it
                     dcol[i] = floor_depth[i]
             else:
-                acc[:] = 0.0
-                cand = items[start[j]:]
-                n_cand = start[j + 1] - start[j]
+                for i in range(h):
+                    acc[i] = 0.0
                 for qs in range(sub):
                     x0 = j - 0.5 + qs / sub
                     x1 = j - 0.5 + (qs + 1) / sub
-                    n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), cand, n_cand, hit_in, hit_out, hit_solid,
-                                   hit_edge, my0, my1, mkind, mid, mval)
-                    shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mkind, mid, mval,
-                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_col, drawn_col,
+                    n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), items, start[j], start[j + 1] - start[j],
+                                   hit_in, hit_out, hit_solid, hit_edge, my0, my1, mkind, mid, mval, 0)
+                    shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
+                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, radiance, drawn_t, j,
                                  floor_depth, h, -1)
             keep_lo[q] = s_lo
             keep_hi[q] = s_hi
-            rc = blk_rad[q]
-            dc = blk_dep[q]
-            for i in range(s_lo):
-                rc[i] = acc[i]
-                dc[i] = dcol[i]
-            for i in range(max(s_hi + 1, s_lo), h):
-                rc[i] = acc[i]
-                dc[i] = dcol[i]
+            uq = np.uint64(q)
+            for i in range(np.uint64(s_lo)):
+                blk_rad[uq, i] = acc[i]
+                blk_dep[uq, i] = dcol[i]
+            for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
+                blk_rad[uq, i] = acc[i]
+                blk_dep[uq, i] = dcol[i]
         # the rows every column of the block keeps (all_lo .. all_hi) get the floor's depth
         # only; the others are stored whole, a column's kept ones among them from the floor pass
         all_lo = keep_lo[0]
@@ -356,24 +376,26 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth)
         if all_hi < all_lo:
             all_lo = h
             all_hi = h - 1
-        for q in range(nb):
-            rc = blk_rad[q]
-            dc = blk_dep[q]
-            for i in range(keep_lo[q], min(keep_hi[q] + 1, all_lo)):
-                rc[i] = radiance[i, j0 + q]
-                dc[i] = floor_depth[i]
-            for i in range(max(keep_lo[q], all_hi + 1), keep_hi[q] + 1):
-                rc[i] = radiance[i, j0 + q]
-                dc[i] = floor_depth[i]
-        for i in range(all_lo):
-            for q in range(nb):
-                radiance[i, j0 + q] = blk_rad[q, i]
-                depth[i, j0 + q] = blk_dep[q, i]
-        for i in range(all_lo, all_hi + 1):
+        # (unsigned indices from here on: no test for negative ones per pixel)
+        uj0 = np.uint64(j0)
+        for q in range(np.uint64(nb)):
+            uj = uj0 + q
+            for i in range(np.uint64(keep_lo[q]), np.uint64(min(keep_hi[q] + 1, all_lo))):
+                blk_rad[q, i] = radiance[i, uj]
+                blk_dep[q, i] = floor_depth[i]
+            for i in range(np.uint64(max(keep_lo[q], all_hi + 1)), np.uint64(keep_hi[q] + 1)):
+                blk_rad[q, i] = radiance[i, uj]
+                blk_dep[q, i] = floor_depth[i]
+        unb = np.uint64(nb)
+        for i in range(np.uint64(all_lo)):
+            for q in range(unb):
+                radiance[i, uj0 + q] = blk_rad[q, i]
+                depth[i, uj0 + q] = blk_dep[q, i]
+        for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
             fd = floor_depth[i]
-            for q in range(nb):
-                depth[i, j0 + q] = fd
-        for i in range(all_hi + 1, h):
-            for q in range(nb):
-                radiance[i, j0 + q] = blk_rad[q, i]
-                depth[i, j0 + q] = blk_dep[q, i]
+            for q in range(unb):
+                depth[i, uj0 + q] = fd
+        for i in range(np.uint64(all_hi + 1), np.uint64(h)):
+            for q in range(unb):
+                radiance[i, uj0 + q] = blk_rad[q, i]
+                depth[i, uj0 + q] = blk_dep[q, i]

@@ -174,15 +174,16 @@ def raster_lookup(light, raster, x, y):
 
 # ------------------------------------------------------------------ rays
 @inline
-def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, hit_edge,
-             sp_y0, sp_y1, sp_kind, sp_id, sp_val):
+def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_solid, hit_edge,
+             sp_y0, sp_y1, sp_kind, sp_id, sp_val, so):
     """The spans of the column ray at image ``x``, front to back.
 
     Args:
-        cand[:n_cand]: the solids that may cross this ray.
-        hit_*: scratch ``(MAX_HITS,)``. sp_*: out ``(MAX_SPANS,)``: rows ``y0..y1``, kind
-            (:class:`SpanKind`), id (face; solid or -1 for flat; -2 background) and value
-            (depth Z of a face, m; height of a flat span, m).
+        items[c0:c0 + n_cand]: the solids that may cross this ray.
+        hit_*: scratch ``(MAX_HITS,)``. sp_*: out ``(so + MAX_SPANS,)``, from ``so`` on: rows
+            ``y0..y1``, kind (:class:`SpanKind`), id (face; solid or -1 for flat; -2
+            background) and value (depth Z of a face, m; height of a flat span, m). (Offsets,
+            not views: a view per ray costs two atomic reference counts.)
     Returns:
         the number of spans (they cover ``-0.5 .. height - 0.5`` from the bottom up).
     """
@@ -194,7 +195,7 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
     near = view.near
     n = 0
     for c in range(n_cand):
-        p = cand[c]
+        p = items[c0 + c]
         t_in = -1e300
         t_out = 1e300
         e_in = -1
@@ -282,11 +283,11 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
             y_lo = cy + fy * (hc - max(h_prev, 0.0)) / z
             y1 = min(y_lo, top)
             if face >= 0 and y_hi < y1:
-                sp_y0[ns] = max(y_hi, -0.5)
-                sp_y1[ns] = y1
-                sp_kind[ns] = _FACE
-                sp_id[ns] = face
-                sp_val[ns] = z
+                sp_y0[so + ns] = max(y_hi, -0.5)
+                sp_y1[so + ns] = y1
+                sp_kind[so + ns] = _FACE
+                sp_id[so + ns] = face
+                sp_val[so + ns] = z
                 ns += 1
             top = min(top, y_hi)
         if 0.0 <= h < hc and top > -0.5:
@@ -294,11 +295,11 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
             y_far = cy + fy * (hc - h) / z_b if z_b < FAR else cy + fy * (hc - h) / FAR
             y1 = min(y_near, top)
             if y_far < y1:
-                sp_y0[ns] = max(y_far, -0.5)
-                sp_y1[ns] = y1
-                sp_kind[ns] = _FLAT
-                sp_id[ns] = hit_solid[best] if best >= 0 else -1
-                sp_val[ns] = h
+                sp_y0[so + ns] = max(y_far, -0.5)
+                sp_y1[so + ns] = y1
+                sp_kind[so + ns] = _FLAT
+                sp_id[so + ns] = hit_solid[best] if best >= 0 else -1
+                sp_val[so + ns] = h
                 ns += 1
             top = min(top, y_far)
         h_prev = h
@@ -306,11 +307,11 @@ def cast_ray(view, solids, floor, x, cand, n_cand, hit_in, hit_out, hit_solid, h
             break
         z_a = z_b
     if top > -0.5:
-        sp_y0[ns] = -0.5
-        sp_y1[ns] = top
-        sp_kind[ns] = _BACKGROUND
-        sp_id[ns] = -2
-        sp_val[ns] = 0.0
+        sp_y0[so + ns] = -0.5
+        sp_y1[so + ns] = top
+        sp_kind[so + ns] = _BACKGROUND
+        sp_id[so + ns] = -2
+        sp_val[so + ns] = 0.0
         ns += 1
     return ns
 
@@ -384,10 +385,12 @@ def bin_solids(view, solids):
 
 
 @inline
-def same_spans(n_a, kind_a, id_a, n_b, kind_b, id_b):
+def same_spans(kind, ids, n_a, oa, n_b, ob):
+    """Whether the ``n_a`` spans at ``oa`` and the ``n_b`` at ``ob`` of ``kind`` and ``ids`` are of
+    the same kinds and ids, in order."""
     if n_a != n_b:
         return False
     for k in range(n_a):
-        if kind_a[k] != kind_b[k] or id_a[k] != id_b[k]:
+        if kind[oa + k] != kind[ob + k] or ids[oa + k] != ids[ob + k]:
             return False
     return True

@@ -14,8 +14,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["BlurScratch", "Decals", "Faces", "Floor", "Light", "MotionBlurParams", "SensorParams", "Solids", "SpanKind",
-           "Textures", "View"]
+__all__ = ["BlurScratch", "Decals", "Faces", "Floor", "FrameScratch", "Light", "MotionBlurParams", "SensorParams",
+           "Solids", "SpanKind", "Textures", "View"]
 
 
 class SpanKind(IntEnum):
@@ -196,3 +196,55 @@ class BlurScratch(NamedTuple):
         return cls(np.zeros((ring_rows, width + 1), np.float32), np.full(ring_rows, -1, np.int64),
                    np.zeros((3, width), np.int32), np.zeros((4, width), np.float32),
                    np.ones(-(-(width + 8) // 8) * 8, np.uint8))
+
+
+class FrameScratch(NamedTuple):
+    """Work arrays of the raycaster's level frame for one image size (``W`` x ``H``), allocated
+    once (:meth:`of`) and overwritten by every frame
+    (:func:`agvsim.sensors.render._raycast_frame.render_view`): one backend draws one frame at
+    a time. ``S`` spans per ray, ``K`` hits per ray, ``B`` columns per stored block."""
+
+    hit_in: np.ndarray  # (K,) float64, m: a ray's prisms, entry depth
+    hit_out: np.ndarray  # (K,) float64, m: exit depth
+    hit_solid: np.ndarray  # (K,) int64
+    hit_edge: np.ndarray  # (K,) int64
+    e_y0: np.ndarray  # ((W + 1) S,) float64, px: the spans of column edge ray r at r S ..
+    e_y1: np.ndarray  # ((W + 1) S,) float64, px
+    e_kind: np.ndarray  # ((W + 1) S,) int64, SpanKind
+    e_id: np.ndarray  # ((W + 1) S,) int64
+    e_val: np.ndarray  # ((W + 1) S,) float64, m
+    e_n: np.ndarray  # (W + 1,) int64, spans of each edge ray
+    drawn: np.ndarray  # (W, H) uint8, 1 where the floor pass drew the pixel
+    row_lo: np.ndarray  # (H,) int64, first column of each row the floor pass draws
+    row_hi: np.ndarray  # (H,) int64, last column
+    floor_depth: np.ndarray  # (H,) float32, m: the floor's depth per row
+    floor_idx: np.ndarray  # (4 W,) uint64: the floor pass's texel and raster indices of a row
+    floor_wts: np.ndarray  # (4 W,) float64: and their weights
+    my0: np.ndarray  # (S,) float64, px: a column's (or sub-column's) spans
+    my1: np.ndarray  # (S,) float64, px
+    mkind: np.ndarray  # (S,) int64
+    mid: np.ndarray  # (S,) int64
+    mval: np.ndarray  # (S,) float64
+    acc: np.ndarray  # (H,) float64: a column's radiance
+    dcol: np.ndarray  # (H,) float32, m: a column's depth
+    shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance, texel columns, decal cover
+    blk_rad: np.ndarray  # (B, H) float32: a block of columns' radiance
+    blk_dep: np.ndarray  # (B, H) float32, m
+    keep_lo: np.ndarray  # (B,) int64: rows a column leaves to the floor pass
+    keep_hi: np.ndarray  # (B,) int64
+
+    @classmethod
+    def of(cls, width: int, height: int, spans: int, hits: int, block: int, shade: int) -> FrameScratch:
+        """Scratch for ``width`` x ``height`` frames (``shade``: the face kernel's scratch length)."""
+        if width < 1 or height < 1 or spans < 4 or hits < 1 or block < 1 or shade < 1:
+            raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}, {block}, "
+                             f"{shade}")
+        f8, i8, n = np.float64, np.int64, (width + 1) * spans
+        return cls(np.zeros(hits), np.zeros(hits), np.zeros(hits, i8), np.zeros(hits, i8),
+                   np.zeros(n), np.zeros(n), np.zeros(n, i8), np.zeros(n, i8), np.zeros(n), np.zeros(width + 1, i8),
+                   np.zeros((width, height), np.uint8), np.zeros(height, i8), np.zeros(height, i8),
+                   np.zeros(height, np.float32), np.zeros(4 * width, np.uint64), np.zeros(4 * width, f8),
+                   np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
+                   np.zeros(height), np.zeros(height, np.float32), np.zeros(shade, f8),
+                   np.zeros((block, height), np.float32), np.zeros((block, height), np.float32),
+                   np.zeros(block, i8), np.zeros(block, i8))

@@ -19,7 +19,7 @@ import numpy as np
 
 from agvsim.sensors.render.lighting import Illumination
 from agvsim.sensors.render.mount import CameraPose
-from agvsim.sensors.render.ray_records import Decals, Faces, Floor, Light, Solids, Textures, View
+from agvsim.sensors.render.ray_records import Decals, Faces, Floor, FrameScratch, Light, Solids, Textures, View
 from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
 from localizer.camera import Camera
@@ -33,7 +33,8 @@ FLOOR_KEY = "floor-plane:surface:floor"  # the floor's texture entry: scene text
 
 
 class RaycastBackend:
-    """Draws level frames of one scene (create once per map, reuse; holds no GL context).
+    """Draws level frames of one scene (create once per map, reuse; holds no GL context; one frame
+    at a time: the kernel's work arrays are the backend's).
 
     Args:
         scene: the scene (:func:`~agvsim.sensors.render.scene.build_scene`).
@@ -65,6 +66,7 @@ class RaycastBackend:
         self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals}, floor_key)
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
+        self._work: FrameScratch | None = None  # the kernel's work arrays, for the last frame size
 
     # --------------------------------------------------------------- frame
     def view(self, camera: Camera, cam_pose: CameraPose, level: float | None, margin: int = 0) -> View:
@@ -79,13 +81,24 @@ class RaycastBackend:
                     float(self.lighting_default if level is None else level), NEAR, self.subcolumns)
 
     def draw_level(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``, both ``(H, W)`` float32, of a level view."""
+        """``(radiance, depth)``, both ``(H, W)`` float32 and new, of a level view."""
         from agvsim.sensors.render._raycast_frame import render_view
 
         radiance = np.empty((view.height, view.width), np.float32)
         depth = np.empty((view.height, view.width), np.float32)
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance, depth)
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance, depth,
+                    self._scratch(view.width, view.height))
         return radiance, depth
+
+    def _scratch(self, width: int, height: int) -> FrameScratch:
+        """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""
+        if self._work is None or self._work.acc.shape[0] != height or self._work.e_n.shape[0] != width + 1:
+            from agvsim.sensors.render._raycast_face import scratch_size
+            from agvsim.sensors.render._raycast_frame import COLUMN_BLOCK
+            from agvsim.sensors.render._raycast_kernels import MAX_HITS, MAX_SPANS
+
+            self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS, COLUMN_BLOCK, scratch_size(height))
+        return self._work
 
     def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
         """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing).
