@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from agvsim.sensors.render._raycast_kernels import FAR
+from localizer._jit import borrowed
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
@@ -45,7 +46,7 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, i
             shows the floor over a whole pixel (none if ``row_hi < row_lo``). Every pixel between
             them is drawn, including those a column does not show the floor at: the column pass
             reads the floor only where it does, and writes every pixel of the frame.
-        radiance: ``(H, W)`` float32, out: the floor's radiance (relative) at those pixels
+        radiance: ``(H, >= W)`` float32, out: the floor's radiance (relative) at those pixels
             (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
@@ -57,6 +58,9 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, i
     multiplies. The numbers are the per-pixel sample's up to float64 rounding (the floor point is
     stepped from the row's first column, not from column 0).
     """
+    tex = borrowed(tex)  # (the caller holds them: no reference counts per row)
+    light = borrowed(light)
+    radiance = borrowed(radiance)
     h = view.height
     w = view.width
     cy = view.cy

@@ -218,9 +218,11 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
 
     The column pass shades each column into contiguous scratch and stores blocks of
     :data:`COLUMN_BLOCK` columns a row at a time (no transposed copy of the frame afterwards).
-    The floor pass draws into ``radiance``; where a column's largest floor span covers the rows
-    whole and the pass drew them, the column leaves its values there (the sum it would take, 0 +
-    1 x the pass's value, is that value) and stores only the floor's depth.
+    The floor pass draws into ``work.floor_img`` (rows padded past a power-of-two stride: the
+    columns read it down a column, and rows 2 kB apart would share a few sets of the cache);
+    where a column's largest floor span covers the rows whole and the pass drew them, the
+    column takes its values from there as they are (the sum it would take, 0 + 1 x the pass's
+    value, is that value) and the floor's depth.
 
     Every array argument is used :func:`~localizer._jit.borrowed` (the caller holds them):
     the inlined helpers take records of arrays per ray, column and span, and counting
@@ -278,7 +280,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                     row_lo[i] = min(row_lo[i], ja)
                     row_hi[i] = jb  # the rays come in column order
     floor_depth = work.floor_depth
-    floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, work.floor_idx, work.floor_wts)
+    floor_img = work.floor_img
+    floor_rows(view, tex, light, floor, row_lo, row_hi, floor_img, floor_depth, work.floor_idx, work.floor_wts)
     my0 = work.my0
     my1 = work.my1
     mkind = work.mkind
@@ -304,7 +307,6 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         nb = min(COLUMN_BLOCK, w - j0)
         for q in range(nb):
             j = j0 + q
-            # the floor pass's radiance[:, j] is read before the block is stored
             oa = j * MAX_SPANS
             ob = oa + MAX_SPANS
             n_a = e_n[j]
@@ -342,7 +344,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                     s_hi = -1
                 _zero_outside(acc, s_lo, s_hi)
                 shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
-                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, radiance, drawn_t, j, floor_depth,
+                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_img, drawn_t, j, floor_depth,
                              s_lo, s_hi)
                 for i in range(s_lo, s_hi + 1):  # as the floor span would have written it
                     dcol[i] = floor_depth[i]
@@ -355,7 +357,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                     n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), items, start[j], start[j + 1] - start[j],
                                    hit_in, hit_out, hit_solid, hit_edge, my0, my1, mkind, mid, mval, 0)
                     shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
-                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, radiance, drawn_t, j,
+                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_img, drawn_t, j,
                                  floor_depth, h, -1)
             keep_lo[q] = s_lo
             keep_hi[q] = s_hi
@@ -381,10 +383,10 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         for q in range(np.uint64(nb)):
             uj = uj0 + q
             for i in range(np.uint64(keep_lo[q]), np.uint64(min(keep_hi[q] + 1, all_lo))):
-                blk_rad[q, i] = radiance[i, uj]
+                blk_rad[q, i] = floor_img[i, uj]
                 blk_dep[q, i] = floor_depth[i]
             for i in range(np.uint64(max(keep_lo[q], all_hi + 1)), np.uint64(keep_hi[q] + 1)):
-                blk_rad[q, i] = radiance[i, uj]
+                blk_rad[q, i] = floor_img[i, uj]
                 blk_dep[q, i] = floor_depth[i]
         unb = np.uint64(nb)
         for i in range(np.uint64(all_lo)):
@@ -394,6 +396,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
             fd = floor_depth[i]
             for q in range(unb):
+                radiance[i, uj0 + q] = floor_img[i, uj0 + q]
                 depth[i, uj0 + q] = fd
         for i in range(np.uint64(all_hi + 1), np.uint64(h)):
             for q in range(unb):

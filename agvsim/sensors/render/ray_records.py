@@ -198,6 +198,10 @@ class BlurScratch(NamedTuple):
                    np.ones(-(-(width + 8) // 8) * 8, np.uint8))
 
 
+#: floats past the width in each row of :attr:`FrameScratch.floor_img` (a row of 512 would be 2 kB)
+FLOOR_PAD = 16
+
+
 class FrameScratch(NamedTuple):
     """Work arrays of the raycaster's level frame for one image size (``W`` x ``H``), allocated
     once (:meth:`of`) and overwritten by every frame
@@ -217,6 +221,7 @@ class FrameScratch(NamedTuple):
     drawn: np.ndarray  # (W, H) uint8, 1 where the floor pass drew the pixel
     row_lo: np.ndarray  # (H,) int64, first column of each row the floor pass draws
     row_hi: np.ndarray  # (H,) int64, last column
+    floor_img: np.ndarray  # (H, W + FLOOR_PAD) float32: the floor pass's radiance (columns 0 .. W - 1)
     floor_depth: np.ndarray  # (H,) float32, m: the floor's depth per row
     floor_idx: np.ndarray  # (4 W,) uint64: the floor pass's texel and raster indices of a row
     floor_wts: np.ndarray  # (4 W,) float64: and their weights
@@ -243,7 +248,8 @@ class FrameScratch(NamedTuple):
         return cls(np.zeros(hits), np.zeros(hits), np.zeros(hits, i8), np.zeros(hits, i8),
                    np.zeros(n), np.zeros(n), np.zeros(n, i8), np.zeros(n, i8), np.zeros(n), np.zeros(width + 1, i8),
                    np.zeros((width, height), np.uint8), np.zeros(height, i8), np.zeros(height, i8),
-                   np.zeros(height, np.float32), np.zeros(4 * width, np.uint64), np.zeros(4 * width, f8),
+                   np.zeros((height, width + FLOOR_PAD), np.float32), np.zeros(height, np.float32),
+                   np.zeros(4 * width, np.uint64), np.zeros(4 * width, f8),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(height, np.float32), np.zeros(shade, f8),
                    np.zeros((block, height), np.float32), np.zeros((block, height), np.float32),
