@@ -28,7 +28,7 @@ from localizer._jit import fast_jit as jit
 __all__ = ["COLUMN_BLOCK", "render_view", "shade_column"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2
-COLUMN_BLOCK = 16  # columns shaded between two row-wise stores (16 float32: one cache line)
+COLUMN_BLOCK = 8  # columns shaded between two row-wise stores (the block's two buffers stay in L1)
 
 
 @inline
@@ -294,11 +294,12 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         dcol[i] = 0.0
     scratch = work.shade  # irradiance samples, two texel columns, decal coverage
     sub = max(view.subcolumns, 1)
-    # columns are shaded in blocks of COLUMN_BLOCK and their radiance and depth stored a row of
-    # the block at a time (a column's own stride is a power of two: its cache lines would share
-    # a few sets of the cache). Of the floor, a column's largest span leaves the rows it covers
-    # whole where the floor pass drew them (keep_lo .. keep_hi): there the pass's radiance stays
-    # in the frame, as it is (0 + 1 x it, the column's sum) and the depth is the floor's row's
+    # columns are shaded in blocks of COLUMN_BLOCK, each into the block's row-major buffer (one
+    # cache line per row), and the block stored a whole row at a time (a column's own stride in
+    # the frame is a power of two: its cache lines would share a few sets of the cache). Of the
+    # floor, a column's largest span leaves the rows it covers whole where the floor pass drew
+    # them (keep_lo .. keep_hi): there the pass's radiance is taken as it is (0 + 1 x it, the
+    # column's sum) and the depth is the floor's row's
     blk_rad = work.blk_rad
     blk_dep = work.blk_dep
     keep_lo = work.keep_lo
@@ -363,11 +364,11 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
             keep_hi[q] = s_hi
             uq = np.uint64(q)
             for i in range(np.uint64(s_lo)):
-                blk_rad[uq, i] = acc[i]
-                blk_dep[uq, i] = dcol[i]
+                blk_rad[i, uq] = acc[i]
+                blk_dep[i, uq] = dcol[i]
             for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
-                blk_rad[uq, i] = acc[i]
-                blk_dep[uq, i] = dcol[i]
+                blk_rad[i, uq] = acc[i]
+                blk_dep[i, uq] = dcol[i]
         # the rows every column of the block keeps (all_lo .. all_hi) get the floor's depth
         # only; the others are stored whole, a column's kept ones among them from the floor pass
         all_lo = keep_lo[0]
@@ -383,16 +384,16 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         for q in range(np.uint64(nb)):
             uj = uj0 + q
             for i in range(np.uint64(keep_lo[q]), np.uint64(min(keep_hi[q] + 1, all_lo))):
-                blk_rad[q, i] = floor_img[i, uj]
-                blk_dep[q, i] = floor_depth[i]
+                blk_rad[i, q] = floor_img[i, uj]
+                blk_dep[i, q] = floor_depth[i]
             for i in range(np.uint64(max(keep_lo[q], all_hi + 1)), np.uint64(keep_hi[q] + 1)):
-                blk_rad[q, i] = floor_img[i, uj]
-                blk_dep[q, i] = floor_depth[i]
+                blk_rad[i, q] = floor_img[i, uj]
+                blk_dep[i, q] = floor_depth[i]
         unb = np.uint64(nb)
         for i in range(np.uint64(all_lo)):
             for q in range(unb):
-                radiance[i, uj0 + q] = blk_rad[q, i]
-                depth[i, uj0 + q] = blk_dep[q, i]
+                radiance[i, uj0 + q] = blk_rad[i, q]
+                depth[i, uj0 + q] = blk_dep[i, q]
         for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
             fd = floor_depth[i]
             for q in range(unb):
@@ -400,5 +401,5 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                 depth[i, uj0 + q] = fd
         for i in range(np.uint64(all_hi + 1), np.uint64(h)):
             for q in range(unb):
-                radiance[i, uj0 + q] = blk_rad[q, i]
-                depth[i, uj0 + q] = blk_dep[q, i]
+                radiance[i, uj0 + q] = blk_rad[i, q]
+                depth[i, uj0 + q] = blk_dep[i, q]

@@ -233,8 +233,8 @@ class FrameScratch(NamedTuple):
     acc: np.ndarray  # (H,) float64: a column's radiance
     dcol: np.ndarray  # (H,) float32, m: a column's depth
     shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance, texel columns, decal cover
-    blk_rad: np.ndarray  # (B, H) float32: a block of columns' radiance
-    blk_dep: np.ndarray  # (B, H) float32, m
+    blk_rad: np.ndarray  # (H, B) float32: a block of columns' radiance, row by row
+    blk_dep: np.ndarray  # (H, B) float32, m
     keep_lo: np.ndarray  # (B,) int64: rows a column leaves to the floor pass
     keep_hi: np.ndarray  # (B,) int64
 
@@ -252,5 +252,5 @@ class FrameScratch(NamedTuple):
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, f8),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(height, np.float32), np.zeros(shade, f8),
-                   np.zeros((block, height), np.float32), np.zeros((block, height), np.float32),
+                   np.zeros((height, block), np.float32), np.zeros((height, block), np.float32),
                    np.zeros(block, i8), np.zeros(block, i8))

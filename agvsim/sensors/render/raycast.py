@@ -24,7 +24,7 @@ from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
 from localizer.camera import Camera
 
-__all__ = ["FLOOR_KEY", "NEAR", "SUBCOLUMNS", "RaycastBackend"]
+__all__ = ["FLOOR_KEY", "NEAR", "SUBCOLUMNS", "RaycastBackend", "frame_buffers"]
 
 NEAR = 0.05  # m, as the pyrender backend's near plane
 SUBCOLUMNS = 4  # sub-column rays of a column that a silhouette crosses
@@ -80,12 +80,19 @@ class RaycastBackend:
                     c, s, s, -c, -1.0 if level is None else float(level),
                     float(self.lighting_default if level is None else level), NEAR, self.subcolumns)
 
-    def draw_level(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``, both ``(H, W)`` float32 and new, of a level view."""
+    def draw_level(self, view: View, out: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """``(radiance, depth)``, both ``(H, W)`` float32, of a level view: new arrays, or ``out``
+        overwritten (two C-contiguous ``(H, W)`` float32 arrays, e.g. from :func:`frame_buffers`,
+        reused frame after frame: rows starting on a cache line, pages already mapped)."""
         from agvsim.sensors.render._raycast_frame import render_view
 
-        radiance = np.empty((view.height, view.width), np.float32)
-        depth = np.empty((view.height, view.width), np.float32)
+        radiance, depth = out if out is not None else frame_buffers(view.width, view.height)
+        shape = (view.height, view.width)
+        for a in (radiance, depth):
+            if a.shape != shape or a.dtype != np.float32 or not a.flags.c_contiguous or not a.flags.writeable:
+                raise ValueError(f"draw_level(out=) needs two writeable C-contiguous {shape} float32 arrays, got "
+                                 f"{a.dtype} {a.shape}")
         render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance, depth,
                     self._scratch(view.width, view.height))
         return radiance, depth
@@ -133,6 +140,19 @@ class RaycastBackend:
         jj, ii = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
         lam = jit[2, 0] * (jj - camera.cx) / camera.fx + jit[2, 1] * (ii - camera.cy) / camera.fy + jit[2, 2]
         return rad, (depth / lam).astype(np.float32)
+
+
+def frame_buffers(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two new ``(height, width)`` float32 arrays for a level frame's radiance and depth, each
+    starting on a 4096-byte boundary (NumPy aligns to 16 bytes; the kernel stores a block of
+    columns a row at a time, and a row that starts mid cache line costs it two lines)."""
+    out = []
+    size = width * height * 4
+    for _ in range(2):
+        buf = np.empty(size + 4096, np.uint8)
+        start = -buf.ctypes.data % 4096
+        out.append(buf[start:start + size].view(np.float32).reshape(height, width))
+    return out[0], out[1]
 
 
 # ------------------------------------------------------------------ building
