@@ -37,6 +37,7 @@ import math
 import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
+from localizer._jit import borrowed
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
@@ -253,6 +254,9 @@ def _run(orow, g0, f1, w0, w1, x0, x1, p0, p1, js, n, o0, o1):
 def _row_runs_ensured(radiance, scratch, orow):
     """:func:`motion_blur`'s runs of one row, each computing the prefix rows it needs first (a
     function of its own: that check in the common loop makes it a third slower)."""
+    radiance = borrowed(radiance)
+    scratch = borrowed(scratch)
+    orow = borrowed(orow)
     w = orow.size
     mask = scratch.prefix.shape[0] - 1
     o0s, o1s, rows = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
@@ -283,7 +287,15 @@ def motion_blur(radiance, depth, params, out, scratch):
         params: :class:`~agvsim.sensors.render.ray_records.MotionBlurParams`.
         out: ``(H, W)`` float32, written (not ``radiance``).
         scratch: :class:`~agvsim.sensors.render.ray_records.BlurScratch` for ``(H, W)``.
+
+    The arguments are used :func:`~localizer._jit.borrowed` (the caller holds them): the rows
+    and prefix rows handed to each run cost no reference counts.
     """
+    radiance = borrowed(radiance)
+    depth = borrowed(depth)
+    params = borrowed(params)
+    out = borrowed(out)
+    scratch = borrowed(scratch)
     h, w = radiance.shape
     fx, fy, cx, cy = params.fx, params.fy, params.cx, params.cy
     ra, rb = params.rot_a, params.rot_b
