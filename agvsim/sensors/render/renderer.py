@@ -115,23 +115,23 @@ def _page_aligned(shape: tuple[int, ...], dtype) -> np.ndarray:
 # the raycaster's modules, imported at its first frame (numba), then looked up once per call
 @functools.cache
 def _kernels():
-    from agvsim.sensors.render import _sensor_kernels
+    import agvsim.sensors.render._sensor_kernels as module
 
-    return _sensor_kernels
+    return module
 
 
 @functools.cache
 def _records():
-    from agvsim.sensors.render import ray_records
+    import agvsim.sensors.render.ray_records as module
 
-    return ray_records
+    return module
 
 
 @functools.cache
 def _frame():
-    from agvsim.sensors.render import _raycast_frame
+    import agvsim.sensors.render._raycast_frame as module
 
-    return _raycast_frame
+    return module
 
 
 class CameraRenderer:

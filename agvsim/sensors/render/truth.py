@@ -288,9 +288,9 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
 @functools.cache
 def _kernels():
     """:mod:`agvsim.sensors.render._truth_kernels` (numba: imported at the first frame)."""
-    from agvsim.sensors.render import _truth_kernels
+    import agvsim.sensors.render._truth_kernels as module
 
-    return _truth_kernels
+    return module
 
 
 def _pinhole(pts: np.ndarray, k: np.ndarray) -> np.ndarray:
