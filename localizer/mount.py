@@ -94,6 +94,11 @@ class CameraMount:
 
 def check_pose(pose) -> tuple[float, float, float]:
     """``(x m, y m, θ rad)`` as floats; ValueError unless three finite numbers."""
+    if type(pose) is tuple and len(pose) == 3:  # the common case, per frame: three finite floats
+        x, y, th = pose
+        if isinstance(x, float) and isinstance(y, float) and isinstance(th, float) and \
+                math.isfinite(x) and math.isfinite(y) and math.isfinite(th):
+            return float(x), float(y), float(th)
     try:
         vals = np.asarray(pose, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -60,10 +60,6 @@ def rotation_from_vector(rvec) -> np.ndarray:
     return c * np.eye(3) + c1 * rrt + s * r_x
 
 
-_NO_JITTER = jitter_rotation(0.0, 0.0)  # read only
-_NO_JITTER.flags.writeable = False
-
-
 @dataclass(frozen=True)
 class CameraPose:
     """The camera's pose for one frame.
@@ -86,9 +82,19 @@ class CameraPose:
     def from_vehicle(cls, mount: CameraMount, vehicle_pose, pitch: float = 0.0, roll: float = 0.0) -> "CameraPose":
         pos, heading = mount.camera_pose(vehicle_pose)
         no_jitter = pitch == 0.0 and roll == 0.0 and math.copysign(1.0, pitch) > 0.0 and math.copysign(1.0, roll) > 0.0
-        # jitter_rotation(0.0, 0.0), the identity (its -sin 0 entries are +0.0), is built once
-        rot = level_rotation(heading) @ (_NO_JITTER if no_jitter else jitter_rotation(pitch, roll))
-        return cls(pos, heading, rot, pitch, roll)
+        if no_jitter:
+            # level_rotation(heading) @ jitter_rotation(0.0, 0.0) (the identity, its -sin 0 entries
+            # +0.0) without the product: each entry of that product is one entry of the level
+            # rotation plus zeros, exact, and a zero sum is +0.0 (every row holds a +0.0), so it
+            # is the level rotation with -0.0 made +0.0 (x + 0.0), bit for bit
+            c, s = math.cos(heading), math.sin(heading)
+            rot = np.array([[s + 0.0, 0.0, c + 0.0], [0.0 - c, 0.0, s + 0.0], [0.0, -1.0, 0.0]])
+        else:
+            rot = level_rotation(heading) @ jitter_rotation(pitch, roll)
+        pose = object.__new__(cls)  # frozen: filled without __init__'s five object.__setattr__ calls
+        object.__setattr__(pose, "__dict__", {"position": pos, "heading": heading, "rotation": rot,
+                                              "pitch": pitch, "roll": roll})
+        return pose
 
     def to_camera(self, points_map) -> np.ndarray:
         """``(..., 3)`` map points (m) -> camera frame (m)."""

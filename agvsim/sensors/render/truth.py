@@ -23,6 +23,7 @@ depth-buffer test of those in view.
 """
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 from dataclasses import dataclass
@@ -236,8 +237,10 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     g = geometry if geometry is not None else TruthGeometry.of(world_map)
     n = len(g.targets)
     rows = (g.frame - cam_pose.position * _CENTRE_ROW).reshape(3 * n, 3)  # centre row now lens -> centre
-    lv = rows @ level_rotation(cam_pose.heading)  # (3n, 3) level camera frame
-    act = (rows @ cam_pose.rotation).reshape(n, 3, 3)  # actual camera frame (jitter included)
+    level = level_rotation(cam_pose.heading)
+    lv = rows @ level  # (3n, 3) level camera frame
+    rot = cam_pose.rotation  # no jitter: the level rotation's very bits, and the product is the same
+    act = (lv if rot.tobytes() == level.tobytes() else rows @ rot).reshape(n, 3, 3)  # actual camera frame
     # level-frame pose (as level_target_pose): p the centre, (cos α, 0, -sin α) across
     p, across = lv[2::3], lv[0::3]  # (n, 3)
     d = np.hypot(p[:, 0], p[:, 2])
@@ -254,15 +257,10 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
         pts = g._image[f] @ act[f]  # (m, 16, 3) m
         k = np.array([[camera.fx, 0.0], [0.0, camera.fy], [camera.cx, camera.cy]])
         px = camera.project(pts) if distorted and camera.dist else _pinhole(pts, k)  # (m, 16, 2) px
-        corners[f] = px[:, ACTIVE]
-        lo, hi = px[:, OUTER].min(axis=1), px[:, OUTER].max(axis=1)  # (m, 2)
-        bbox[f, :2], bbox[f, 2:] = lo, hi
-        iv = (lo[:, 0] >= -0.5) & (lo[:, 1] >= -0.5) & (hi[:, 0] <= camera.width - 0.5) & (
-            hi[:, 1] <= camera.height - 0.5)
-        in_view[f] = iv
-        top = px[:, EDGES_TOP]
-        bars[f, 0] = np.abs(top[:, 1:, 0] - top[:, :-1, 0]).min(axis=1)
-        bars[f, 1] = (px[:, EDGES_BOTTOM, 1] - top[:, :, 1]).min(axis=1)
+        # corners (ACTIVE), bbox (of OUTER), in_view, bars (EDGES_TOP, EDGES_BOTTOM), compiled
+        _kernels().image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height,
+                                  table, in_view)
+        iv = in_view[f]
         if depth is not None and iv.any():
             seen = f[iv]
             grid = g._grid[seen] @ act[seen]  # (len(seen), 35, 3) m
@@ -287,6 +285,14 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
                       lighting=lighting, targets=tuple(out))
 
 
+@functools.cache
+def _kernels():
+    """:mod:`agvsim.sensors.render._truth_kernels` (numba: imported at the first frame)."""
+    import agvsim.sensors.render._truth_kernels as module
+
+    return module
+
+
 def _pinhole(pts: np.ndarray, k: np.ndarray) -> np.ndarray:
     """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens):
     ``[X/Z, Y/Z, 1] @ k``, ``k`` the ``(3, 2)`` ``[[fx, 0], [0, fy], [cx, cy]]``."""
@@ -307,9 +313,7 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
     (0) or something nearer than ``z - (0.004 + 0.0005 z)`` (as the points are > NEAR away the
     threshold is > 0, so that is ``0 <= zbuf < threshold``).
     """
-    from agvsim.sensors.render._truth_kernels import occluded_fraction
-
     out = np.empty(z.shape[0])
-    occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
+    _kernels().occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
                       depth, int(supersample), out)
     return out
