@@ -104,14 +104,6 @@ class RenderConditions:
         return cls(**base)
 
 
-def _page_aligned(shape: tuple[int, ...], dtype) -> np.ndarray:
-    """``np.empty(shape, dtype)`` starting on a 4096-byte boundary."""
-    size = math.prod(shape) * np.dtype(dtype).itemsize
-    buf = np.empty(size + 4096, np.uint8)
-    start = -buf.ctypes.data % 4096
-    return buf[start:start + size].view(dtype).reshape(shape)
-
-
 # the raycaster's modules, imported at its first frame (numba), then looked up once per call
 @functools.cache
 def _kernels():
@@ -123,13 +115,6 @@ def _kernels():
 @functools.cache
 def _records():
     import agvsim.sensors.render.ray_records as module
-
-    return module
-
-
-@functools.cache
-def _frame():
-    import agvsim.sensors.render._raycast_frame as module
 
     return module
 
@@ -285,18 +270,16 @@ class CameraRenderer:
         """The backend's ``(radiance, depth)``; a level camera's are drawn into this renderer's
         frame scratch (two ``(H, W)`` float32 arrays overwritten by every frame: nothing
         :meth:`render` returns refers to them), a jittered camera's by :meth:`RaycastBackend.draw`
-        (resampled). The scratch is page-aligned: the kernel writes its rows a column at a time,
-        and rows that start mid cache line (NumPy aligns to 16 bytes) cost it ~4 % (0.1 ms)."""
+        (resampled). The scratch is page-aligned (:func:`~agvsim.sensors.render.raycast.frame_buffers`):
+        the kernel stores its rows in blocks of columns, and rows that start mid cache line (NumPy
+        aligns to 16 bytes) cost it ~4 % (0.1 ms)."""
         if cam_pose.pitch != 0.0 or cam_pose.roll != 0.0:
             return self.engine.draw(self.camera, cam_pose, level)
         if self._frame_scratch is None:
-            shape = (self.camera.height, self.camera.width)
-            self._frame_scratch = (_page_aligned(shape, np.float32), _page_aligned(shape, np.float32))
-        radiance, depth = self._frame_scratch
-        e = self.engine
-        _frame().render_view(e.view(self.camera, cam_pose, level), e.solids, e.faces, e.decals, e.textures,
-                             e.light, e.floor, radiance, depth)
-        return radiance, depth
+            from agvsim.sensors.render.raycast import frame_buffers
+
+            self._frame_scratch = frame_buffers(self.camera.width, self.camera.height)
+        return self.engine.draw_level(self.engine.view(self.camera, cam_pose, level), self._frame_scratch)
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
         """Camera linear (m/s) and angular (rad/s) velocity in the camera frame."""
