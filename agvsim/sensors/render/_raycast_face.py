@@ -365,8 +365,9 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     _plain_rows(f_lo, min(b_lo - 1, f_hi), g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
     _plain_rows(max(b_hi + 1, f_lo), f_hi, g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
     if write_depth:  # the pixel centres inside the span: y0 <= i < y1
-        for i in range(max(int(math.ceil(y0)), i_lo), min(int(math.ceil(y1)) - 1, i_hi) + 1):
-            depth[i] = z
+        d_a = max(int(math.ceil(y0)), i_lo)
+        for i in range(np.uint64(d_a), np.uint64(max(min(int(math.ceil(y1)) - 1, i_hi) + 1, d_a))):
+            depth[i] = z  # (unsigned: a vectorised fill)
 
 
 #: fractional bits of the fixed-point texel coordinates of :func:`_plain_rows`

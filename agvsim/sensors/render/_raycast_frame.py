@@ -47,9 +47,9 @@ def _whole_rows(y0, y1, h):
 @inline
 def _zero_outside(acc, lo, hi):
     """``acc`` set to 0 but at ``lo .. hi`` (everywhere if ``hi < lo``; ``lo <= acc.size``)."""
-    for i in range(lo):
+    for i in range(np.uint64(lo)):  # (unsigned: vectorised fills)
         acc[i] = 0.0
-    for i in range(max(hi + 1, lo), acc.size):
+    for i in range(np.uint64(max(hi + 1, lo)), np.uint64(acc.size)):
         acc[i] = 0.0
 
 
@@ -198,11 +198,32 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
                     acc[i] += bg * (yb - ya)
                     if write_depth and ya <= i < yb:
                         depth[i] = 0.0
-            for i in range(f_lo, f_hi + 1):
+            for i in range(np.uint64(f_lo), np.uint64(max(f_hi + 1, f_lo))):
                 acc[i] += bg
             if write_depth:
-                for i in range(f_lo, f_hi + 1):
+                for i in range(np.uint64(f_lo), np.uint64(max(f_hi + 1, f_lo))):
                     depth[i] = 0.0
+
+
+@inline
+def _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, nb, all_lo, all_hi):
+    """Store a block of ``nb`` columns from ``uj0`` (uint64) into the frame, a row at a time: from the
+    block's buffers, but rows ``all_lo .. all_hi``, which every column of the block leaves to the
+    floor pass (its radiance, the floor's depth)."""
+    unb = np.uint64(nb)
+    for i in range(np.uint64(all_lo)):
+        for q in range(unb):
+            radiance[i, uj0 + q] = blk_rad[i, q]
+            depth[i, uj0 + q] = blk_dep[i, q]
+    for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
+        fd = floor_depth[i]
+        for q in range(unb):
+            radiance[i, uj0 + q] = floor_img[i, uj0 + q]
+            depth[i, uj0 + q] = fd
+    for i in range(np.uint64(all_hi + 1), np.uint64(radiance.shape[0])):
+        for q in range(unb):
+            radiance[i, uj0 + q] = blk_rad[i, q]
+            depth[i, uj0 + q] = blk_dep[i, q]
 
 
 @jit
@@ -347,8 +368,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                 shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
                              j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_img, drawn_t, j, floor_depth,
                              s_lo, s_hi)
-                for i in range(s_lo, s_hi + 1):  # as the floor span would have written it
-                    dcol[i] = floor_depth[i]
+                for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # as the floor span would have
+                    dcol[i] = floor_depth[i]  # written it
             else:
                 for i in range(h):
                     acc[i] = 0.0
@@ -389,17 +410,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
             for i in range(np.uint64(max(keep_lo[q], all_hi + 1)), np.uint64(keep_hi[q] + 1)):
                 blk_rad[i, q] = floor_img[i, uj]
                 blk_dep[i, q] = floor_depth[i]
-        unb = np.uint64(nb)
-        for i in range(np.uint64(all_lo)):
-            for q in range(unb):
-                radiance[i, uj0 + q] = blk_rad[i, q]
-                depth[i, uj0 + q] = blk_dep[i, q]
-        for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
-            fd = floor_depth[i]
-            for q in range(unb):
-                radiance[i, uj0 + q] = floor_img[i, uj0 + q]
-                depth[i, uj0 + q] = fd
-        for i in range(np.uint64(all_hi + 1), np.uint64(h)):
-            for q in range(unb):
-                radiance[i, uj0 + q] = blk_rad[i, q]
-                depth[i, uj0 + q] = blk_dep[i, q]
+        if nb == COLUMN_BLOCK:  # a constant count: each row is one vector load and store per array
+            _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, COLUMN_BLOCK, all_lo, all_hi)
+        else:
+            _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, nb, all_lo, all_hi)
