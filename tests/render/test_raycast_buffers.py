@@ -1,0 +1,98 @@
+"""The raycaster's reused memory: borrowed kernel arguments, the frame's work arrays and the
+caller's frame buffers.
+
+* :func:`localizer._jit.borrowed` gives the same data without an owner (no reference counted,
+  the owner's count untouched), for arrays and (named) tuples of them;
+* a frame drawn after frames of other poses (and another lighting) is the same as drawn first:
+  nothing of one frame's work arrays leaks into the next;
+* ``draw_level(out=)`` writes into the caller's buffers the same frame as new arrays, and refuses
+  buffers of another shape, type or layout with a ``ValueError``;
+* :func:`frame_buffers` rows start on cache lines (the buffers start on a page).
+"""
+from __future__ import annotations
+
+import sys
+from typing import NamedTuple
+
+import numpy as np
+import pytest
+
+from agvsim.sensors.render.raycast import frame_buffers
+from agvsim.sensors.render.renderer import CameraRenderer
+from agvsim.sensors.render.strip import route_poses
+from agvsim.world import load_map
+from localizer import Camera
+from localizer._jit import borrowed, fast_jit
+
+
+class _Pair(NamedTuple):
+    a: np.ndarray
+    b: np.ndarray
+    k: float
+
+
+@fast_jit
+def _sum_borrowed(pair, x):
+    pair = borrowed(pair)
+    x = borrowed(x)
+    tail = x[1:]  # a view of a borrowed array: no owner either
+    s = 0.0
+    for i in range(x.size):
+        s += pair.a[i % pair.a.size] * x[i]
+    return s + pair.b.sum() * pair.k + tail[0]
+
+
+def test_borrowed_arrays_read_the_same_data_and_leave_the_owner_count_alone():
+    a, b, x = np.arange(5.0), np.ones(3), np.arange(10.0)
+    counts = [sys.getrefcount(v) for v in (a, b, x)]
+    expected = float(((np.arange(10) % 5) * np.arange(10.0)).sum() + 3 * 2.0 + 1.0)
+    for _ in range(3):
+        assert _sum_borrowed(_Pair(a, b, 2.0), x) == expected
+    assert [sys.getrefcount(v) for v in (a, b, x)] == counts
+
+
+@pytest.fixture(scope="module")
+def plant():
+    m = load_map("plant_floor")
+    camera = Camera.thesis(16.0)
+    return m, camera, CameraRenderer(m, camera, mount=m.camera_mount, backend="raycast")
+
+
+def test_a_frame_does_not_depend_on_the_frames_before_it(plant):
+    m, camera, r = plant
+    poses = route_poses(m, 8, lookahead_target=False)
+    first = [r.engine.draw(camera, r.camera_pose(p), None) for p in poses[:1]][0]
+    for p in poses[1:]:  # other poses (and another lighting level) through the same work arrays
+        r.engine.draw(camera, r.camera_pose(p), None)
+        r.engine.draw(camera, r.camera_pose(p), 0.4)
+    again = r.engine.draw(camera, r.camera_pose(poses[0]), None)
+    assert np.array_equal(first[0], again[0]) and np.array_equal(first[1], again[1])
+    # and a renderer that never drew anything else draws it the same
+    fresh = CameraRenderer(m, camera, mount=m.camera_mount, backend="raycast")
+    alone = fresh.engine.draw(camera, fresh.camera_pose(poses[0]), None)
+    assert np.array_equal(first[0], alone[0]) and np.array_equal(first[1], alone[1])
+
+
+def test_draw_level_into_the_callers_buffers(plant):
+    m, camera, r = plant
+    pose = route_poses(m, 3, lookahead_target=False)[1]
+    view = r.engine.view(camera, r.camera_pose(pose), None)
+    rad, dep = r.engine.draw_level(view)
+    out = frame_buffers(camera.width, camera.height)
+    out[0][:] = -1.0
+    out[1][:] = -1.0
+    got = r.engine.draw_level(view, out)
+    assert got[0] is out[0] and got[1] is out[1]
+    assert np.array_equal(out[0], rad) and np.array_equal(out[1], dep)
+    for bad in [(np.empty((camera.height, camera.width + 1), np.float32), out[1]),
+                (out[0], np.empty((camera.height, camera.width), np.float64)),
+                (np.empty((camera.width, camera.height), np.float32).T, out[1])]:
+        with pytest.raises(ValueError, match="draw_level"):
+            r.engine.draw_level(view, bad)
+
+
+def test_frame_buffers_start_on_a_page():
+    rad, dep = frame_buffers(512, 480)
+    for a in (rad, dep):
+        assert a.shape == (480, 512) and a.dtype == np.float32 and a.flags.c_contiguous
+        assert a.ctypes.data % 4096 == 0
