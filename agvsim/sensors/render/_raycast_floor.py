@@ -23,6 +23,8 @@ from localizer._jit import fast_jit as jit
 
 __all__ = ["floor_level", "floor_rows"]
 
+_ONE = np.float32(1.0)
+
 
 @inline
 def floor_level(tex, fk, foot):
@@ -50,13 +52,14 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, i
             (others are left as they are).
         floor_depth: ``(H,)`` float32, out: the floor's depth at each row's pixel centres (m
             along the optical axis; 0 at and above the horizon).
-        idx, wts: ``(4 W,)`` uint64 and float64 scratch.
+        idx, wts: ``(4 W,)`` uint64 and float32 scratch.
 
     A row is drawn in two loops: the first, vectorised, takes each pixel's texel and raster
     coordinates (linear in the column, thesis §3.5) to the flat indices and bilinear weights of
     its 2 x 2 texels and 2 x 2 lighting cells; the second gathers them (scalar loads) and
-    multiplies. The numbers are the per-pixel sample's up to float64 rounding (the floor point is
-    stepped from the row's first column, not from column 0).
+    multiplies, in float32 (the texels, the raster and the frame are float32: no conversions).
+    The numbers are the per-pixel sample's up to float32 rounding (the coordinates in float64;
+    the floor point is stepped from the row's first column, not from column 0).
     """
     tex = borrowed(tex)  # (the caller holds them: no reference counts per row)
     light = borrowed(light)
@@ -74,7 +77,7 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, i
     inv_th = 1.0 / floor.tile_h
     zoned = view.level < 0.0
     irr_raster = light.floor_zone_irradiance if zoned else light.floor_irradiance
-    gain = 1.0 if zoned else view.level
+    gain32 = np.float32(1.0 if zoned else view.level)
     rows_r, cols_r = irr_raster.shape
     irr = irr_raster.ravel()
     ucols = np.uint64(cols_r)
@@ -145,19 +148,19 @@ def floor_rows(view, tex, light, floor, row_lo, row_hi, radiance, floor_depth, i
             wts[4 * q + 2] = mx - gx
             wts[4 * q + 3] = my - gy
         out = radiance[i, j_lo:j_hi + 1]
-        for q in range(n):
+        for q in range(n):  # in float32, as the texels, the raster and the frame are
             a = idx[4 * q]
             b = a + idx[4 * q + 1]
             c = a + idx[4 * q + 2]
             d = c + idx[4 * q + 1]
             fj = wts[4 * q]
             fi = wts[4 * q + 1]
-            alb = ((mip[a] * (1.0 - fj) + mip[b] * fj) * (1.0 - fi)
-                   + (mip[c] * (1.0 - fj) + mip[d] * fj) * fi)
+            alb = ((mip[a] * (_ONE - fj) + mip[b] * fj) * (_ONE - fi)
+                   + (mip[c] * (_ONE - fj) + mip[d] * fj) * fi)
             g0 = idx[4 * q + 3]
             g1 = g0 + ucols
             gj = wts[4 * q + 2]
             gi = wts[4 * q + 3]
-            irr_q = ((irr[g0] * (1.0 - gj) + irr[g0 + one] * gj) * (1.0 - gi)
-                     + (irr[g1] * (1.0 - gj) + irr[g1 + one] * gj) * gi)
-            out[q] = gain * alb * irr_q
+            irr_q = ((irr[g0] * (_ONE - gj) + irr[g0 + one] * gj) * (_ONE - gi)
+                     + (irr[g1] * (_ONE - gj) + irr[g1 + one] * gj) * gi)
+            out[q] = gain32 * alb * irr_q

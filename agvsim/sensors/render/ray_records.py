@@ -224,7 +224,7 @@ class FrameScratch(NamedTuple):
     floor_img: np.ndarray  # (H, W + FLOOR_PAD) float32: the floor pass's radiance (columns 0 .. W - 1)
     floor_depth: np.ndarray  # (H,) float32, m: the floor's depth per row
     floor_idx: np.ndarray  # (4 W,) uint64: the floor pass's texel and raster indices of a row
-    floor_wts: np.ndarray  # (4 W,) float64: and their weights
+    floor_wts: np.ndarray  # (4 W,) float32: and their weights
     my0: np.ndarray  # (S,) float64, px: a column's (or sub-column's) spans
     my1: np.ndarray  # (S,) float64, px
     mkind: np.ndarray  # (S,) int64
@@ -249,7 +249,7 @@ class FrameScratch(NamedTuple):
                    np.zeros(n), np.zeros(n), np.zeros(n, i8), np.zeros(n, i8), np.zeros(n), np.zeros(width + 1, i8),
                    np.zeros((width, height), np.uint8), np.zeros(height, i8), np.zeros(height, i8),
                    np.zeros((height, width + FLOOR_PAD), np.float32), np.zeros(height, np.float32),
-                   np.zeros(4 * width, np.uint64), np.zeros(4 * width, f8),
+                   np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(height, np.float32), np.zeros(shade, f8),
                    np.zeros((height, block), np.float32), np.zeros((height, block), np.float32),
