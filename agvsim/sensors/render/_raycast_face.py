@@ -66,7 +66,7 @@ def _face_irradiance(light, f, s, z_top, dz, n, out):
 
 @inline
 def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, scale, buf, bo, cap):
-    """Level ``lv`` of texture ``k`` along a face span: ``buf[bo + m]`` = ``scale`` x the mean of the
+    """Level ``lv`` of texture ``k`` along a face span: ``buf[bo + m]`` (float32) = ``scale`` x the mean of the
     bilinear samples at ``u_c - u_half`` and ``u_c + u_half`` in texel row ``k_lo + m`` (repeated
     if tiled, clamped if not), for the rows image rows ``y_lo .. y_hi`` reach (``cap`` at most).
     Returns ``(n, a, b)``: the rows filled, and the coordinate ``a + b y`` (from ``bo``) of image
@@ -107,10 +107,10 @@ def _texel_column(tex, k, lv, u_c, u_half, v0, dvz, hc, cy, zpy, y_lo, y_hi, sca
     ca1 = off + ja1 * mh
     cb0 = off + jb0 * mh
     cb1 = off + jb1 * mh
-    wa0 = 0.5 * scale * (1.0 - fa)
-    wa1 = 0.5 * scale * fa
-    wb0 = 0.5 * scale * (1.0 - fb)
-    wb1 = 0.5 * scale * fb
+    wa0 = np.float32(0.5 * scale * (1.0 - fa))  # (float32, as the texels and buf)
+    wa1 = np.float32(0.5 * scale * fa)
+    wb0 = np.float32(0.5 * scale * (1.0 - fb))
+    wb1 = np.float32(0.5 * scale * fb)
     q = 0
     while q < n:
         r = k_lo + q
@@ -268,23 +268,26 @@ def _irr_at(irr, ym, y0, inv_step, n_l):
 
 @inline
 def scratch_size(h):
-    """Length of :func:`shade_face`'s float64 scratch for an image ``h`` rows high: the irradiance
-    samples (``h + 2``), the two texel columns (``4 h + 8`` each), the decal rows' coverage
-    (``2 h``)."""
-    return h + 2 + 2 * (4 * h + 8) + 2 * h
+    """Lengths ``(shade, texels)`` of :func:`shade_face`'s scratch for an image ``h`` rows high:
+    float64, the irradiance samples (``h + 2``) and the decal rows' coverage (``2 h``); float32,
+    the two texel columns (``4 h + 8`` each)."""
+    return h + 2 + 2 * h, 2 * (4 * h + 8)
 
 
 @inline
 def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc, depth, write_depth,
-               scratch):
+               work):
     """Add ``gain`` x the radiance of face ``f`` (depth ``z`` m along the axis) over rows
     ``y0 .. y1`` of the (sub-)column ``x0 .. x1`` to ``acc`` ``(H,)``; ``depth`` ``(H,)`` gets
-    ``z`` at the pixel centres it covers when ``write_depth``. ``scratch``:
-    ``(scratch_size(H),)`` float64 (irradiance samples, two texel columns, decal coverage)."""
+    ``z`` at the pixel centres it covers when ``write_depth``. ``work``: the frame's
+    :class:`~agvsim.sensors.render.ray_records.FrameScratch` (its ``shade``: irradiance samples
+    and decal coverage; its ``texels``: the span's two texel columns, float32)."""
+    scratch = work.shade
+    texels = work.texels
     h_img = view.height
     cap = 4 * h_img + 8
-    b0 = h_img + 2  # the texel columns' offsets in the scratch
-    b1 = b0 + cap
+    b0 = 0  # the texel columns' offsets in texels
+    b1 = cap
     fy = view.fy
     cy = view.cy
     hc = view.cam_z
@@ -322,9 +325,9 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     t_hi = max(y0, y1) + 1.0
     # (each weighted by its trilinear weight)
     n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, 1.0 - w1,
-                                 scratch, b0, cap)
+                                 texels, b0, cap)
     n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1,
-                                 scratch, b1, cap)
+                                 texels, b1, cap)
     # the rows of decals that this column's footprint on the face crosses
     d_lo = 1e300
     d_hi = -1e300
@@ -354,16 +357,16 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     n_band = max(b_hi + 1 - b_lo, 0)
     for q in range(n_top + n_bot):
         i = i_lo + q if q < n_top else bot + q - n_top
-        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, scratch, b0, n0,
+        cov, alb, ym = _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, texels, b0, n0,
                                    t0a, t0b, b1, n1, t1a, t1b, d_lo, d_hi)
         if cov > 0.0:
             acc[i] += gain * cov * alb * _irr_at(scratch, ym, y0, inv_step, n_l)
     if n_band > 0:
-        _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, scratch, b0, n0, t0a, t0b, b1,
-                    n1, t1a, t1b, scratch, y0, inv_step, n_l, acc, scratch[b1 + cap:])
+        _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, texels, b0, n0, t0a, t0b, b1,
+                    n1, t1a, t1b, scratch, y0, inv_step, n_l, acc, scratch[h_img + 2:])
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
-    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
-    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, scratch, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc)
+    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, texels, b0, t0a, t0b, b1, t1a, t1b, scratch, y0, step, n_l, acc)
+    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, texels, b0, t0a, t0b, b1, t1a, t1b, scratch, y0, step, n_l, acc)
     if write_depth:  # the pixel centres inside the span: y0 <= i < y1
         d_a = max(int(math.ceil(y0)), i_lo)
         for i in range(np.uint64(d_a), np.uint64(max(min(int(math.ceil(y1)) - 1, i_hi) + 1, d_a))):
@@ -373,7 +376,7 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
 #: fractional bits of the fixed-point texel coordinates of :func:`_plain_rows`
 FIXED_BITS = 32
 _FIXED_ONE = float(1 << FIXED_BITS)
-_FIXED_INV = 1.0 / _FIXED_ONE
+_FIXED_INV = np.float32(1.0 / _FIXED_ONE)  # (float32: the texel columns' interpolation is float32)
 _U1 = np.uint64(1)
 _UBITS = np.uint64(FIXED_BITS)
 _UMASK = np.uint64((1 << FIXED_BITS) - 1)
@@ -390,14 +393,14 @@ def _lerp_fixed(buf, o, p):
     """``buf[o:]`` interpolated linearly at the fixed-point coordinate ``p`` (unsigned: array
     indices without a test for negative ones)."""
     q = o + (p >> _UBITS)
-    return buf[q] + (buf[q + _U1] - buf[q]) * (np.int64(p & _UMASK) * _FIXED_INV)
+    return buf[q] + (buf[q + _U1] - buf[q]) * (np.float32(np.int64(p & _UMASK)) * _FIXED_INV)
 
 
 @inline
-def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc):
+def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, irr, y0, step, n_l, acc):
     """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: ``g`` x the
     sum of the two subsamples of each level (``buf[b0:]``, ``buf[b1:]``: the levels' texel
-    columns, weighted) times the irradiance (``buf[:n_l]``).
+    columns, weighted, float32: interpolated in float32) times the irradiance (``irr[:n_l]``).
 
     The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
     subsamples need no clamping; their coordinates step by a constant per row, in fixed
@@ -422,8 +425,8 @@ def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, y0, step, n_l, acc):
     for m in range(m0, m1 + 1):
         a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
         b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
-        slope = g * (buf[m + 1] - buf[m]) / step
-        e = g * buf[m] + (a - (y0 + m * step)) * slope
+        slope = g * (irr[m + 1] - irr[m]) / step
+        e = g * irr[m] + (a - (y0 + m * step)) * slope
         for i in range(np.uint64(a), np.uint64(b + 1)):
             acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb) + _lerp_fixed(buf, o1, pc)
                        + _lerp_fixed(buf, o1, pd)) * e

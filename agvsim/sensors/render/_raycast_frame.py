@@ -145,7 +145,7 @@ def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, de
 
 @inline
 def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y1, sp_val, sp_kind, sp_id, ko,
-                 x0, x1, weight, acc, depth, write_depth, scratch, floor_img, drawn, j, floor_depth, skip_lo,
+                 x0, x1, weight, acc, depth, write_depth, work, floor_img, drawn, j, floor_depth, skip_lo,
                  skip_hi):
     """Add ``weight`` x the radiance of the spans of the (sub-)column ``x0 .. x1`` of column
     ``j`` to ``acc``.
@@ -156,7 +156,8 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
         acc: ``(H,)`` float64 radiance accumulator of the column.
         depth: ``(H,)`` float32 depth at the pixel centres (m along the axis, 0 = nothing),
             written when ``write_depth``.
-        scratch: ``(scratch_size(H),)`` float64 (:func:`~agvsim.sensors.render._raycast_face.shade_face`).
+        work: the frame's :class:`~agvsim.sensors.render.ray_records.FrameScratch` (the face
+            kernel's, :func:`~agvsim.sensors.render._raycast_face.shade_face`).
         floor_img, drawn, floor_depth: the floor from the floor pass
             (:func:`agvsim.sensors.render._raycast_floor.floor_rows`): radiance ``(H, W)``
             (column ``j`` read), which rows of each column it drew ``(W, H)`` uint8, the floor's
@@ -174,7 +175,7 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
         sid = sp_id[ko + k]
         if kind == _FACE:
             shade_face(view, faces, decals, tex, light, sid, sp_val[k], y0, y1, x0, x1, weight, acc, depth,
-                       write_depth, scratch)
+                       write_depth, work)
         elif kind == _FLAT and sid < 0:
             _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth,
                         floor_img, drawn, j, floor_depth, skip_lo, skip_hi)
@@ -313,7 +314,6 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
     for i in range(h):
         acc[i] = 0.0
         dcol[i] = 0.0
-    scratch = work.shade  # irradiance samples, two texel columns, decal coverage
     sub = max(view.subcolumns, 1)
     # columns are shaded in blocks of COLUMN_BLOCK, each into the block's row-major buffer (one
     # cache line per row), and the block stored a whole row at a time (a column's own stride in
@@ -366,7 +366,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                     s_hi = -1
                 _zero_outside(acc, s_lo, s_hi)
                 shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
-                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, scratch, floor_img, drawn_t, j, floor_depth,
+                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, work, floor_img, drawn_t, j, floor_depth,
                              s_lo, s_hi)
                 for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # as the floor span would have
                     dcol[i] = floor_depth[i]  # written it
@@ -379,7 +379,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
                     n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), items, start[j], start[j + 1] - start[j],
                                    hit_in, hit_out, hit_solid, hit_edge, my0, my1, mkind, mid, mval, 0)
                     shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
-                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, scratch, floor_img, drawn_t, j,
+                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, work, floor_img, drawn_t, j,
                                  floor_depth, h, -1)
             keep_lo[q] = s_lo
             keep_hi[q] = s_hi

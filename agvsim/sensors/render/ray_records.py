@@ -232,16 +232,19 @@ class FrameScratch(NamedTuple):
     mval: np.ndarray  # (S,) float64
     acc: np.ndarray  # (H,) float64: a column's radiance
     dcol: np.ndarray  # (H,) float32, m: a column's depth
-    shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance, texel columns, decal cover
+    shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
+    texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
     blk_rad: np.ndarray  # (H, B) float32: a block of columns' radiance, row by row
     blk_dep: np.ndarray  # (H, B) float32, m
     keep_lo: np.ndarray  # (B,) int64: rows a column leaves to the floor pass
     keep_hi: np.ndarray  # (B,) int64
 
     @classmethod
-    def of(cls, width: int, height: int, spans: int, hits: int, block: int, shade: int) -> FrameScratch:
-        """Scratch for ``width`` x ``height`` frames (``shade``: the face kernel's scratch length)."""
-        if width < 1 or height < 1 or spans < 4 or hits < 1 or block < 1 or shade < 1:
+    def of(cls, width: int, height: int, spans: int, hits: int, block: int, shade: tuple[int, int]
+           ) -> FrameScratch:
+        """Scratch for ``width`` x ``height`` frames (``shade``: the face kernel's scratch lengths,
+        float64 and float32)."""
+        if width < 1 or height < 1 or spans < 4 or hits < 1 or block < 1 or min(shade) < 1:
             raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}, {block}, "
                              f"{shade}")
         f8, i8, n = np.float64, np.int64, (width + 1) * spans
@@ -251,6 +254,7 @@ class FrameScratch(NamedTuple):
                    np.zeros((height, width + FLOOR_PAD), np.float32), np.zeros(height, np.float32),
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
-                   np.zeros(height), np.zeros(height, np.float32), np.zeros(shade, f8),
+                   np.zeros(height), np.zeros(height, np.float32), np.zeros(shade[0], f8),
+                   np.zeros(shade[1], np.float32),
                    np.zeros((height, block), np.float32), np.zeros((height, block), np.float32),
                    np.zeros(block, i8), np.zeros(block, i8))
