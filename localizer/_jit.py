@@ -52,14 +52,6 @@ fast_inline = numba.njit(cache=True, nogil=True, fastmath=True, error_model="num
 
 
 # ------------------------------------------------------------------ borrowed arrays
-def _borrowed_typer(x):
-    if isinstance(x, numba.types.Array):
-        return x
-    if isinstance(x, (numba.types.BaseTuple,)):
-        return x
-    return None
-
-
 @numba.extending.intrinsic
 def borrowed(typingctx, x):
     """``x`` (an array, or a tuple or named tuple of arrays and scalars) with every array's
@@ -75,7 +67,7 @@ def borrowed(typingctx, x):
     caller holds them for the call), never an array allocated in the kernel, and never return
     one or store it anywhere that outlives the call.
     """
-    if _borrowed_typer(x) is None:
+    if not isinstance(x, (numba.types.Array, numba.types.BaseTuple)):
         return None
 
     def codegen(context, builder, signature, args):

@@ -87,8 +87,7 @@ class CameraPose:
             # +0.0) without the product: each entry of that product is one entry of the level
             # rotation plus zeros, exact, and a zero sum is +0.0 (every row holds a +0.0), so it
             # is the level rotation with -0.0 made +0.0 (x + 0.0), bit for bit
-            c, s = math.cos(heading), math.sin(heading)
-            rot = np.array([[s + 0.0, 0.0, c + 0.0], [0.0 - c, 0.0, s + 0.0], [0.0, -1.0, 0.0]])
+            rot = level_rotation(heading) + 0.0
         else:
             rot = level_rotation(heading) @ jitter_rotation(pitch, roll)
         pose = object.__new__(cls)  # frozen: filled without __init__'s five object.__setattr__ calls

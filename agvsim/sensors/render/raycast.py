@@ -107,15 +107,17 @@ class RaycastBackend:
             self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS, COLUMN_BLOCK, scratch_size(height))
         return self._work
 
-    def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing).
+    def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None,
+             out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing),
+        new arrays or ``out`` overwritten (as :meth:`draw_level`'s).
 
         With pitch/roll jitter the level frame is drawn ``margin`` px larger and resampled
         through the homography ``K_m J K^-1`` of the rotation ``J`` about the lens centre
         (bilinear for radiance, nearest for depth, which is converted to the tilted axis).
         """
         if cam_pose.pitch == 0.0 and cam_pose.roll == 0.0:
-            return self.draw_level(self.view(camera, cam_pose, level))
+            return self.draw_level(self.view(camera, cam_pose, level), out)
         import cv2
 
         from agvsim.sensors.render.mount import jitter_rotation
@@ -132,14 +134,16 @@ class RaycastBackend:
         hom = km @ jit @ np.linalg.inv(k)  # actual pixel -> level pixel
         size = (camera.width, camera.height)
         flags = cv2.WARP_INVERSE_MAP
-        rad = cv2.warpPerspective(rad_level, hom, size, flags=cv2.INTER_LINEAR | flags,
-                                  borderMode=cv2.BORDER_REPLICATE)
+        rad, dep = out if out is not None else frame_buffers(camera.width, camera.height)
+        cv2.warpPerspective(rad_level, hom, size, dst=rad, flags=cv2.INTER_LINEAR | flags,
+                            borderMode=cv2.BORDER_REPLICATE)
         depth = cv2.warpPerspective(depth_level, hom, size, flags=cv2.INTER_NEAREST | flags,
                                     borderMode=cv2.BORDER_REPLICATE)
-        # depth along the tilted axis: Z_act = Z_level / (J (x_n, y_n, 1))_z
+        # depth along the tilted axis: Z_act = Z_level / (J (x_n, y_n, 1))_z (in float64, stored float32)
         jj, ii = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
         lam = jit[2, 0] * (jj - camera.cx) / camera.fx + jit[2, 1] * (ii - camera.cy) / camera.fy + jit[2, 2]
-        return rad, (depth / lam).astype(np.float32)
+        np.divide(depth, lam, out=dep, casting="same_kind")
+        return rad, dep
 
 
 def frame_buffers(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:

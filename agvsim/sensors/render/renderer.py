@@ -21,7 +21,6 @@ defocus, distortion, exposure, noise, saturation, 8 bits -> truth
 """
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
@@ -35,14 +34,12 @@ from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.render.gl import GLContext
 from agvsim.sensors.render.lighting import Illumination, lighting_level
 from agvsim.sensors.render.mount import CameraMount, CameraPose, check_pose
+from agvsim.sensors.render.ray_records import BlurScratch, MotionBlurParams, SensorParams
 from agvsim.sensors.render.scene import SceneDescription, build_scene
 from agvsim.sensors.render.truth import FrameTruth, TruthGeometry, frame_truth
 
 
 def _num(name: str, value, lo: float | None = 0.0, strict: bool = False) -> float:
-    if type(value) is float and (-math.inf < value if lo is None else value > lo if strict else value >= lo) \
-            and value < math.inf:  # the common case, without building the name
-        return value
     return check_number(f"RenderConditions.{name}", value, low=lo, low_open=strict)
 
 
@@ -104,21 +101,6 @@ class RenderConditions:
         return cls(**base)
 
 
-# the raycaster's modules, imported at its first frame (numba), then looked up once per call
-@functools.cache
-def _kernels():
-    import agvsim.sensors.render._sensor_kernels as module
-
-    return module
-
-
-@functools.cache
-def _records():
-    import agvsim.sensors.render.ray_records as module
-
-    return module
-
-
 class CameraRenderer:
     """Renders camera frames of one map; create once per world and reuse.
 
@@ -154,7 +136,7 @@ class CameraRenderer:
         self._truth_geometry = TruthGeometry.of(world_map)
         self._distortion_maps = None
         self._blur_scratch = None
-        self._frame_scratch = None
+        self._frame_buffers = None  # raycast: the frame's radiance and depth, drawn into every frame
         if self.backend == "pyrender":
             from agvsim.sensors.render.pyrender_backend import PyrenderBackend
 
@@ -240,46 +222,32 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
+        from agvsim.sensors.render._sensor_kernels import expose, motion_blur, nearest_depth
+
         c = self.camera
-        radiance, depth = self._draw_raycast(cam_pose, conditions.level)
+        if self._frame_buffers is None:  # the backend draws into them (nothing render() returns refers to them)
+            from agvsim.sensors.render.raycast import frame_buffers
+
+            self._frame_buffers = frame_buffers(c.width, c.height)
+        radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
         v, w = conditions.velocity
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
-                                        conditions.exposure_time, z_min=_kernels().nearest_depth(depth))
+                                        conditions.exposure_time, z_min=nearest_depth(depth))
             if motion is not None:
                 if self._blur_scratch is None:  # the blurred frame and the blur's work arrays, reused
-                    self._blur_scratch = (np.empty((c.height, c.width), np.float32),
-                                          _records().BlurScratch.of(c.height, c.width))
+                    self._blur_scratch = (np.empty((c.height, c.width), np.float32), BlurScratch.of(c.height, c.width))
                 blurred, scratch = self._blur_scratch
-                _kernels().motion_blur(radiance, depth, _records().MotionBlurParams(c.fx, c.fy, c.cx, c.cy,
-                                                                                    *motion[:4]), blurred, scratch)
+                motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
                 radiance = blurred
-        if conditions.defocus_px > 0 or conditions.focus_distance is not None or (conditions.distortion and c.dist):
-            radiance = self._optics(radiance, depth, conditions)
+        radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
         seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
-        params = _records().SensorParams(float(s.gain * conditions.exposure), float(s.flare),
-                                         float(s.full_well / 255.0), float(s.read_noise),
-                                         float(conditions.noise_scale if rng is not None else 0.0), seed)
+        params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
+                              float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
-        _kernels().expose(radiance if radiance.flags.c_contiguous else np.ascontiguousarray(radiance), params,
-                          image)  # the kernel reads it flat
+        expose(np.ascontiguousarray(radiance), params, image)  # the kernel reads it flat
         return image, depth
-
-    def _draw_raycast(self, cam_pose: CameraPose, level: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """The backend's ``(radiance, depth)``; a level camera's are drawn into this renderer's
-        frame scratch (two ``(H, W)`` float32 arrays overwritten by every frame: nothing
-        :meth:`render` returns refers to them), a jittered camera's by :meth:`RaycastBackend.draw`
-        (resampled). The scratch is page-aligned (:func:`~agvsim.sensors.render.raycast.frame_buffers`):
-        the kernel stores its rows in blocks of columns, and rows that start mid cache line (NumPy
-        aligns to 16 bytes) cost it ~4 % (0.1 ms)."""
-        if cam_pose.pitch != 0.0 or cam_pose.roll != 0.0:
-            return self.engine.draw(self.camera, cam_pose, level)
-        if self._frame_scratch is None:
-            from agvsim.sensors.render.raycast import frame_buffers
-
-            self._frame_scratch = frame_buffers(self.camera.width, self.camera.height)
-        return self.engine.draw_level(self.engine.view(self.camera, cam_pose, level), self._frame_scratch)
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
         """Camera linear (m/s) and angular (rad/s) velocity in the camera frame."""

@@ -23,7 +23,6 @@ depth-buffer test of those in view.
 """
 from __future__ import annotations
 
-import functools
 import math
 import weakref
 from dataclasses import dataclass
@@ -258,8 +257,9 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
         k = np.array([[camera.fx, 0.0], [0.0, camera.fy], [camera.cx, camera.cy]])
         px = camera.project(pts) if distorted and camera.dist else _pinhole(pts, k)  # (m, 16, 2) px
         # corners (ACTIVE), bbox (of OUTER), in_view, bars (EDGES_TOP, EDGES_BOTTOM), compiled
-        _kernels().image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height,
-                                  table, in_view)
+        from agvsim.sensors.render._truth_kernels import image_geometry
+
+        image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table, in_view)
         iv = in_view[f]
         if depth is not None and iv.any():
             seen = f[iv]
@@ -285,14 +285,6 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
                       lighting=lighting, targets=tuple(out))
 
 
-@functools.cache
-def _kernels():
-    """:mod:`agvsim.sensors.render._truth_kernels` (numba: imported at the first frame)."""
-    import agvsim.sensors.render._truth_kernels as module
-
-    return module
-
-
 def _pinhole(pts: np.ndarray, k: np.ndarray) -> np.ndarray:
     """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens):
     ``[X/Z, Y/Z, 1] @ k``, ``k`` the ``(3, 2)`` ``[[fx, 0], [0, fy], [cx, cy]]``."""
@@ -314,6 +306,8 @@ def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersa
     threshold is > 0, so that is ``0 <= zbuf < threshold``).
     """
     out = np.empty(z.shape[0])
-    _kernels().occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
+    from agvsim.sensors.render._truth_kernels import occluded_fraction
+
+    occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
                       depth, int(supersample), out)
     return out
