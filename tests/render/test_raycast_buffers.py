@@ -6,8 +6,11 @@ caller's frame buffers.
 * a frame drawn after frames of other poses (and another lighting) is the same as drawn first:
   nothing of one frame's work arrays leaks into the next;
 * ``draw_level(out=)`` writes into the caller's buffers the same frame as new arrays, and refuses
-  buffers of another shape, type or layout with a ``ValueError``;
-* :func:`frame_buffers` rows start on cache lines (the buffers start on a page).
+  buffers of another shape, type or layout (row-major among them) with a ``ValueError``;
+* :func:`frame_buffers` are column-major and start on a page;
+* the frame is column-major, its values those of the image: a row-major copy of it is the same
+  picture, and the renderer's 8-bit frame, made from the column-major radiance, is row-major
+  and the same image with noise off as a row-major radiance exposed.
 """
 from __future__ import annotations
 
@@ -86,13 +89,34 @@ def test_draw_level_into_the_callers_buffers(plant):
     assert np.array_equal(out[0], rad) and np.array_equal(out[1], dep)
     for bad in [(np.empty((camera.height, camera.width + 1), np.float32), out[1]),
                 (out[0], np.empty((camera.height, camera.width), np.float64)),
-                (np.empty((camera.width, camera.height), np.float32).T, out[1])]:
+                (np.empty((camera.height, camera.width), np.float32), out[1]),  # row-major
+                (out[0][::-1], out[1])]:
         with pytest.raises(ValueError, match="draw_level"):
             r.engine.draw_level(view, bad)
 
 
-def test_frame_buffers_start_on_a_page():
+def test_frame_buffers_are_column_major_and_start_on_a_page():
     rad, dep = frame_buffers(512, 480)
     for a in (rad, dep):
-        assert a.shape == (480, 512) and a.dtype == np.float32 and a.flags.c_contiguous
-        assert a.ctypes.data % 4096 == 0
+        assert a.shape == (480, 512) and a.dtype == np.float32 and a.flags.f_contiguous
+        assert not a.flags.c_contiguous and a.ctypes.data % 4096 == 0
+
+
+def test_the_column_major_frame_is_the_image(plant):
+    from agvsim.sensors.render import RenderConditions
+    from agvsim.sensors.render._sensor_kernels import expose
+    from agvsim.sensors.render.ray_records import SensorParams
+
+    m, camera, r = plant
+    pose = route_poses(m, 3, lookahead_target=False)[1]
+    rad, dep = r.engine.draw(camera, r.camera_pose(pose), None)
+    assert rad.flags.f_contiguous and dep.flags.f_contiguous
+    # (that it is not transposed: the fidelity tests hold it against pyrender's row-major frames)
+    image, truth = r.render(pose, RenderConditions(noise=False), None)
+    assert image.flags.c_contiguous and image.shape == (camera.height, camera.width)
+    s = r.sensor
+    params = SensorParams(float(s.gain), float(s.flare), float(s.full_well / 255.0), float(s.read_noise), 0.0, 0)
+    row_major = np.empty_like(image)
+    expose(np.ascontiguousarray(rad), params, row_major)
+    assert np.array_equal(image, row_major)
+    assert np.array_equal(np.ascontiguousarray(rad), rad)

@@ -6,6 +6,10 @@
   the same bits (a float64 NumPy reimplementation);
 * ``expose`` adds exactly those normals at the model's sigma; same seed same frame, other
   seed other frame; no noise gives the rounded exposure;
+* ``expose_columns`` (a column-major frame into a row-major one) gives each column the normals
+  of a one-column frame, the counter advanced past the columns before it (every pixel its own
+  draws), the 8 x 8 block stores and the odd sizes included; without noise it is ``expose`` of
+  the row-major frame;
 * ``motion_blur`` equals a float64 NumPy evaluation of its model (path ends by projection,
   exact horizontal integral, rows blended at the path's midpoint) on textured scenes with
   yaw, sideways and forward motion, far pixels, paths clipped at the image sides, paths
@@ -21,9 +25,11 @@ import pytest
 from scipy.special import ndtr
 
 from agvsim.sensors.render import sensor as sn
+from agvsim.sensors.render._motion_blur_kernels import motion_blur
 from agvsim.sensors.render._sensor_kernels import (
     expose,
-    motion_blur,
+    expose_columns,
+    expose_scratch,
     nearest_depth,
     standard_normals,
 )
@@ -56,11 +62,12 @@ def _leading_zeros(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e, y
 
 
-def exact_normals(seed: int, n: int) -> np.ndarray:
+def exact_normals(seed: int, n: int, first_pair: int = 0) -> np.ndarray:
     """The Box-Muller transform, in float64 with NumPy's log / cos / sin, of the bits the kernels
-    use for a frame of ``n`` pixels (module docstring of ``_sensor_kernels``)."""
+    use for a frame of ``n`` pixels (module docstring of ``_sensor_kernels``), the counter
+    advanced by ``first_pair`` pairs (a column of ``expose_columns``)."""
     m = n // 2
-    k = np.arange(m + 1, dtype=np.uint64)
+    k = np.arange(m + 1, dtype=np.uint64) + np.uint64(first_pair)
     with np.errstate(over="ignore"):
         c = np.uint64(seed) + (np.uint64(2) * k + np.uint64(1)) * _GOLDEN
         bits_r = _splitmix64(c) | np.uint64(1)
@@ -131,6 +138,29 @@ def test_expose_adds_the_generators_normals_at_the_models_sigma():
     frac = (grey + exact_normals(4242, h * w) * sigma).reshape(h, w) % 1.0
     sure = np.abs(frac - 0.5) > 1e-3
     assert np.array_equal(out[sure], np.clip(expected, 0, 255)[sure]) and sure.mean() > 0.99
+
+
+@pytest.mark.parametrize("h, w", [(480, 512), (301, 256), (480, 257), (9, 8)])
+def test_expose_columns_gives_every_column_its_own_draws(h, w):
+    rng = np.random.default_rng(h + w)
+    radiance_t = rng.uniform(0.0, 1.2, (w, h)).astype(np.float32)  # column j at radiance_t[j]
+    params = SensorParams(200.0, 5.0, 20000.0 / 255.0, 0.8, 3.0, 4242)
+    out = np.empty((h, w), np.uint8)
+    expose_columns(radiance_t, params, out, expose_scratch(h))
+    grey = radiance_t.T.astype(np.float64) * 200.0 + 5.0
+    sigma = 3.0 * np.sqrt(grey / (20000.0 / 255.0) + 0.64)
+    pairs = h - h // 2
+    z = np.stack([exact_normals(4242, h, j * pairs) for j in range(w)], axis=1)  # (h, w)
+    noisy = grey + z * sigma
+    sure = np.abs(noisy % 1.0 - 0.5) > 1e-3  # not within float32 rounding of a half grey level
+    assert np.array_equal(out[sure], np.clip(np.floor(noisy + 0.5), 0, 255)[sure]) and sure.mean() > 0.99
+    # neighbouring columns draw independently (no pattern repeated down the frame)
+    assert abs(np.corrcoef(z[:, :-1].ravel(), z[:, 1:].ravel())[0, 1]) < 5.0 / math.sqrt(z.size)
+    quiet = np.empty((h, w), np.uint8)
+    expose_columns(radiance_t, params._replace(noise_scale=0.0), quiet, expose_scratch(h))
+    row_major = np.empty((h, w), np.uint8)
+    expose(np.ascontiguousarray(radiance_t.T), params._replace(noise_scale=0.0), row_major)
+    assert np.array_equal(quiet, row_major)
 
 
 def test_expose_same_seed_same_frame_other_seed_other_frame():

@@ -157,11 +157,14 @@ def _column_at(buf, o, t, n):
 def _own_reflectance(buf, b0, n0, t0a, t0b, b1, n1, t1a, t1b, ym):
     """The face's own reflectance at row coordinate ``ym``: its two subsample rows
     (``ym -+ 1/4``), trilinear between the span's two levels (their texel columns, weighted, at
-    ``buf[b0:]`` and ``buf[b1:]``; coordinate ``ta + tb y`` of image row ``y``)."""
+    ``buf[b0:]`` and ``buf[b1:]``; coordinate ``ta + tb y`` of image row ``y``; ``n1 == 0``: no
+    second level, whose terms would be +0.0)."""
     ta = ym - 0.25
     tb = ym + 0.25
-    return 0.5 * (_column_at(buf, b0, t0a + t0b * ta, n0) + _column_at(buf, b0, t0a + t0b * tb, n0)
-                  + _column_at(buf, b1, t1a + t1b * ta, n1) + _column_at(buf, b1, t1a + t1b * tb, n1))
+    own = _column_at(buf, b0, t0a + t0b * ta, n0) + _column_at(buf, b0, t0a + t0b * tb, n0)
+    if n1 > 0:
+        own = own + _column_at(buf, b1, t1a + t1b * ta, n1) + _column_at(buf, b1, t1a + t1b * tb, n1)
+    return 0.5 * own
 
 
 @inline
@@ -185,8 +188,7 @@ def _face_pixel(view, faces, decals, tex, f, i, y0, y1, s_a, s_b, hc, cy, zpy, b
 
 @inline
 def _sat_row_span(sat, row, ja, fa, jb, fb):
-    """Row ``row`` of a summed-area table (``sat[row:]``, flattened) at column ``jb + fb`` minus
-    at ``ja + fa`` (linear between table columns)."""
+    """Row ``row`` of a summed-area table (``sat[row:]``) at column ``jb + fb`` minus at ``ja + fa``."""
     return (sat[row + jb] + (sat[row + jb + 1] - sat[row + jb]) * fb
             - sat[row + ja] - (sat[row + ja + 1] - sat[row + ja]) * fa)
 
@@ -326,8 +328,11 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
     # (each weighted by its trilinear weight)
     n0, t0a, t0b = _texel_column(tex, tk, lv0, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, 1.0 - w1,
                                  texels, b0, cap)
-    n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1,
-                                 texels, b1, cap)
+    if w1 > 0.0:
+        n1, t1a, t1b = _texel_column(tex, tk, lv1, u_c, u_half, faces.v0[f], dvz, hc, cy, zpy, t_lo, t_hi, w1,
+                                     texels, b1, cap)
+    else:  # one level (magnified, or the last one): the other's samples would all be +0.0
+        n1, t1a, t1b = 0, 0.0, 0.0
     # the rows of decals that this column's footprint on the face crosses
     d_lo = 1e300
     d_hi = -1e300
@@ -365,8 +370,8 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
         _decal_rows(faces, decals, tex, f, s_lo, s_hi, hc, cy, zpy, b_lo, b_hi, gain, texels, b0, n0, t0a, t0b, b1,
                     n1, t1a, t1b, scratch, y0, inv_step, n_l, acc, scratch[h_img + 2:])
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
-    _plain_rows(f_lo, min(b_lo - 1, f_hi), g, texels, b0, t0a, t0b, b1, t1a, t1b, scratch, y0, step, n_l, acc)
-    _plain_rows(max(b_hi + 1, f_lo), f_hi, g, texels, b0, t0a, t0b, b1, t1a, t1b, scratch, y0, step, n_l, acc)
+    for lo, hi in ((f_lo, min(b_lo - 1, f_hi)), (max(b_hi + 1, f_lo), f_hi)):  # above and below the band
+        _plain_rows(lo, hi, g, texels, b0, t0a, t0b, b1, t1a, t1b, n1 > 0, scratch, y0, step, n_l, acc)
     if write_depth:  # the pixel centres inside the span: y0 <= i < y1
         d_a = max(int(math.ceil(y0)), i_lo)
         for i in range(np.uint64(d_a), np.uint64(max(min(int(math.ceil(y1)) - 1, i_hi) + 1, d_a))):
@@ -397,7 +402,7 @@ def _lerp_fixed(buf, o, p):
 
 
 @inline
-def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, irr, y0, step, n_l, acc):
+def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, two, irr, y0, step, n_l, acc):
     """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: ``g`` x the
     sum of the two subsamples of each level (``buf[b0:]``, ``buf[b1:]``: the levels' texel
     columns, weighted, float32: interpolated in float32) times the irradiance (``irr[:n_l]``).
@@ -406,7 +411,8 @@ def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, irr, y0, step, n_l, 
     subsamples need no clamping; their coordinates step by a constant per row, in fixed
     point (:data:`FIXED_BITS` fractional bits: 2e-10 texel, no float-to-int conversion per
     sample; unsigned, a negative step wrapping modulo 2^64); the irradiance is stepped
-    linearly within each of its segments (``step`` rows from ``y0``)."""
+    linearly within each of its segments (``step`` rows from ``y0``). ``two``: False when the second
+    level has weight 0 (magnified: most walls); its subsamples (+0.0) would not change the sum."""
     if hi < lo:
         return
     d0 = 0.25 * t0b
@@ -427,11 +433,18 @@ def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, irr, y0, step, n_l, 
         b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
         slope = g * (irr[m + 1] - irr[m]) / step
         e = g * irr[m] + (a - (y0 + m * step)) * slope
-        for i in range(np.uint64(a), np.uint64(b + 1)):
-            acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb) + _lerp_fixed(buf, o1, pc)
-                       + _lerp_fixed(buf, o1, pd)) * e
-            e += slope
-            pa += s0
-            pb += s0
-            pc += s1
-            pd += s1
+        if two:
+            for i in range(np.uint64(a), np.uint64(b + 1)):
+                acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb) + _lerp_fixed(buf, o1, pc)
+                           + _lerp_fixed(buf, o1, pd)) * e
+                e += slope
+                pa += s0
+                pb += s0
+                pc += s1
+                pd += s1
+        else:
+            for i in range(np.uint64(a), np.uint64(b + 1)):
+                acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb)) * e
+                e += slope
+                pa += s0
+                pb += s0

@@ -25,10 +25,9 @@ from localizer._jit import borrowed
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["COLUMN_BLOCK", "render_view", "shade_column"]
+__all__ = ["render_view", "shade_column"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2
-COLUMN_BLOCK = 8  # columns shaded between two row-wise stores (the block's two buffers stay in L1)
 
 
 @inline
@@ -206,40 +205,22 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
                     depth[i] = 0.0
 
 
-@inline
-def _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, nb, all_lo, all_hi):
-    """Store a block of ``nb`` columns from ``uj0`` (uint64) into the frame, a row at a time: from the
-    block's buffers, but rows ``all_lo .. all_hi``, which every column of the block leaves to the
-    floor pass (its radiance, the floor's depth)."""
-    unb = np.uint64(nb)
-    for i in range(np.uint64(all_lo)):
-        for q in range(unb):
-            radiance[i, uj0 + q] = blk_rad[i, q]
-            depth[i, uj0 + q] = blk_dep[i, q]
-    for i in range(np.uint64(all_lo), np.uint64(all_hi + 1)):
-        fd = floor_depth[i]
-        for q in range(unb):
-            radiance[i, uj0 + q] = floor_img[i, uj0 + q]
-            depth[i, uj0 + q] = fd
-    for i in range(np.uint64(all_hi + 1), np.uint64(radiance.shape[0])):
-        for q in range(unb):
-            radiance[i, uj0 + q] = blk_rad[i, q]
-            depth[i, uj0 + q] = blk_dep[i, q]
-
-
 @jit
-def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth, work):
-    """Draw one level frame.
+def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t, work):
+    """Draw one level frame, column-major.
 
     Args:
         view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
-        radiance: out ``(H, W)`` float32, radiance (relative).
-        depth: out ``(H, W)`` float32, depth (m along the optical axis, 0 = nothing).
+        radiance_t: out ``(W, H)`` float32, C-contiguous: radiance (relative), column ``j`` of
+            the image at ``radiance_t[j]`` (the transpose of the ``(H, W)`` frame).
+        depth_t: out ``(W, H)`` float32, C-contiguous: depth (m along the optical axis, 0 =
+            nothing), likewise.
         work: the :class:`~agvsim.sensors.render.ray_records.FrameScratch` for ``W`` x ``H``
-            (:data:`MAX_SPANS`, :data:`MAX_HITS`, :data:`COLUMN_BLOCK`, ``scratch_size(H)``).
+            (:data:`MAX_SPANS`, :data:`MAX_HITS`, ``scratch_size(H)``).
 
-    The column pass shades each column into contiguous scratch and stores blocks of
-    :data:`COLUMN_BLOCK` columns a row at a time (no transposed copy of the frame afterwards).
+    The column pass shades each column into contiguous scratch and stores it whole where the
+    frame holds it contiguously (a row-major frame would take each column a pixel per row,
+    one cache line each: a third of the frame's time, storing blocks of columns row by row).
     The floor pass draws into ``work.floor_img`` (rows padded past a power-of-two stride: the
     columns read it down a column, and rows 2 kB apart would share a few sets of the cache);
     where a column's largest floor span covers the rows whole and the pass drew them, the
@@ -255,8 +236,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
     decals = borrowed(decals)
     tex = borrowed(tex)
     light = borrowed(light)
-    radiance = borrowed(radiance)
-    depth = borrowed(depth)
+    radiance_t = borrowed(radiance_t)
+    depth_t = borrowed(depth_t)
     work = borrowed(work)
     w = view.width
     h = view.height
@@ -315,102 +296,70 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance, depth,
         acc[i] = 0.0
         dcol[i] = 0.0
     sub = max(view.subcolumns, 1)
-    # columns are shaded in blocks of COLUMN_BLOCK, each into the block's row-major buffer (one
-    # cache line per row), and the block stored a whole row at a time (a column's own stride in
-    # the frame is a power of two: its cache lines would share a few sets of the cache). Of the
-    # floor, a column's largest span leaves the rows it covers whole where the floor pass drew
-    # them (keep_lo .. keep_hi): there the pass's radiance is taken as it is (0 + 1 x it, the
-    # column's sum) and the depth is the floor's row's
-    blk_rad = work.blk_rad
-    blk_dep = work.blk_dep
-    keep_lo = work.keep_lo
-    keep_hi = work.keep_hi
-    for j0 in range(0, w, COLUMN_BLOCK):
-        nb = min(COLUMN_BLOCK, w - j0)
-        for q in range(nb):
-            j = j0 + q
-            oa = j * MAX_SPANS
-            ob = oa + MAX_SPANS
-            n_a = e_n[j]
-            n_b = e_n[j + 1]
-            s_lo = h
-            s_hi = -1
-            if same_spans(e_kind, e_id, n_a, oa, n_b, ob):
-                for k in range(n_b):
-                    my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
-                    my1[k] = 0.5 * (e_y1[oa + k] + e_y1[ob + k])
-                    if e_kind[ob + k] == _FACE:  # 1/Z is affine across a plane
-                        mval[k] = 2.0 / (1.0 / e_val[oa + k] + 1.0 / e_val[ob + k])
-                    else:
-                        mval[k] = e_val[ob + k]
-                    if e_kind[ob + k] == _FLAT and e_id[ob + k] < 0:
-                        lo, hi = _whole_rows(my0[k], my1[k], h)
+    # each column is shaded into ``acc`` and ``dcol`` and stored whole, contiguous in the
+    # column-major frame. Of the floor, a column's largest span leaves the rows it covers whole
+    # where the floor pass drew them (s_lo .. s_hi): there the pass's radiance is taken as it
+    # is (0 + 1 x it, the column's sum) and the depth is the floor's row's
+    for j in range(w):
+        oa = j * MAX_SPANS
+        ob = oa + MAX_SPANS
+        n_a = e_n[j]
+        n_b = e_n[j + 1]
+        s_lo = h
+        s_hi = -1
+        if same_spans(e_kind, e_id, n_a, oa, n_b, ob):
+            for k in range(n_b):
+                my0[k] = 0.5 * (e_y0[oa + k] + e_y0[ob + k])
+                my1[k] = 0.5 * (e_y1[oa + k] + e_y1[ob + k])
+                if e_kind[ob + k] == _FACE:  # 1/Z is affine across a plane
+                    mval[k] = 2.0 / (1.0 / e_val[oa + k] + 1.0 / e_val[ob + k])
+                else:
+                    mval[k] = e_val[ob + k]
+                if e_kind[ob + k] == _FLAT and e_id[ob + k] < 0:
+                    lo, hi = _whole_rows(my0[k], my1[k], h)
+                    if hi - lo > s_hi - s_lo:
+                        # of them, those the floor pass drew: the edge rays' same span's
+                        # whole rows (the middle's lie between theirs), when they meet
+                        la, ha = _whole_rows(e_y0[oa + k], e_y1[oa + k], h)
+                        lb, hb = _whole_rows(e_y0[ob + k], e_y1[ob + k], h)
+                        if ha < la:
+                            la, ha = lb, hb
+                        elif hb >= lb and max(la, lb) <= min(ha, hb) + 1:
+                            la, ha = min(la, lb), max(ha, hb)
+                        elif hb - lb > ha - la:
+                            la, ha = lb, hb
+                        lo = max(lo, la)
+                        hi = min(hi, ha)
                         if hi - lo > s_hi - s_lo:
-                            # of them, those the floor pass drew: the edge rays' same span's
-                            # whole rows (the middle's lie between theirs), when they meet
-                            la, ha = _whole_rows(e_y0[oa + k], e_y1[oa + k], h)
-                            lb, hb = _whole_rows(e_y0[ob + k], e_y1[ob + k], h)
-                            if ha < la:
-                                la, ha = lb, hb
-                            elif hb >= lb and max(la, lb) <= min(ha, hb) + 1:
-                                la, ha = min(la, lb), max(ha, hb)
-                            elif hb - lb > ha - la:
-                                la, ha = lb, hb
-                            lo = max(lo, la)
-                            hi = min(hi, ha)
-                            if hi - lo > s_hi - s_lo:
-                                s_lo = lo
-                                s_hi = hi
-                if s_hi < s_lo:
-                    s_lo = h
-                    s_hi = -1
-                _zero_outside(acc, s_lo, s_hi)
-                shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
-                             j - 0.5, j + 0.5, 1.0, acc, dcol, True, work, floor_img, drawn_t, j, floor_depth,
-                             s_lo, s_hi)
-                for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # as the floor span would have
-                    dcol[i] = floor_depth[i]  # written it
-            else:
-                for i in range(h):
-                    acc[i] = 0.0
-                for qs in range(sub):
-                    x0 = j - 0.5 + qs / sub
-                    x1 = j - 0.5 + (qs + 1) / sub
-                    n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), items, start[j], start[j + 1] - start[j],
-                                   hit_in, hit_out, hit_solid, hit_edge, my0, my1, mkind, mid, mval, 0)
-                    shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
-                                 x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, work, floor_img, drawn_t, j,
-                                 floor_depth, h, -1)
-            keep_lo[q] = s_lo
-            keep_hi[q] = s_hi
-            uq = np.uint64(q)
-            for i in range(np.uint64(s_lo)):
-                blk_rad[i, uq] = acc[i]
-                blk_dep[i, uq] = dcol[i]
-            for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
-                blk_rad[i, uq] = acc[i]
-                blk_dep[i, uq] = dcol[i]
-        # the rows every column of the block keeps (all_lo .. all_hi) get the floor's depth
-        # only; the others are stored whole, a column's kept ones among them from the floor pass
-        all_lo = keep_lo[0]
-        all_hi = keep_hi[0]
-        for q in range(1, nb):
-            all_lo = max(all_lo, keep_lo[q])
-            all_hi = min(all_hi, keep_hi[q])
-        if all_hi < all_lo:
-            all_lo = h
-            all_hi = h - 1
-        # (unsigned indices from here on: no test for negative ones per pixel)
-        uj0 = np.uint64(j0)
-        for q in range(np.uint64(nb)):
-            uj = uj0 + q
-            for i in range(np.uint64(keep_lo[q]), np.uint64(min(keep_hi[q] + 1, all_lo))):
-                blk_rad[i, q] = floor_img[i, uj]
-                blk_dep[i, q] = floor_depth[i]
-            for i in range(np.uint64(max(keep_lo[q], all_hi + 1)), np.uint64(keep_hi[q] + 1)):
-                blk_rad[i, q] = floor_img[i, uj]
-                blk_dep[i, q] = floor_depth[i]
-        if nb == COLUMN_BLOCK:  # a constant count: each row is one vector load and store per array
-            _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, COLUMN_BLOCK, all_lo, all_hi)
+                            s_lo = lo
+                            s_hi = hi
+            if s_hi < s_lo:
+                s_lo = h
+                s_hi = -1
+            _zero_outside(acc, s_lo, s_hi)
+            shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
+                         j - 0.5, j + 0.5, 1.0, acc, dcol, True, work, floor_img, drawn_t, j, floor_depth,
+                         s_lo, s_hi)
         else:
-            _store_block(radiance, depth, blk_rad, blk_dep, floor_img, floor_depth, uj0, nb, all_lo, all_hi)
+            for i in range(h):
+                acc[i] = 0.0
+            for qs in range(sub):
+                x0 = j - 0.5 + qs / sub
+                x1 = j - 0.5 + (qs + 1) / sub
+                n_c = cast_ray(view, solids, floor, 0.5 * (x0 + x1), items, start[j], start[j + 1] - start[j],
+                               hit_in, hit_out, hit_solid, hit_edge, my0, my1, mkind, mid, mval, 0)
+                shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
+                             x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, work, floor_img, drawn_t, j,
+                             floor_depth, h, -1)
+        # the column, contiguous in the frame: the shaded rows, and the rows kept from the floor
+        # pass (its radiance as it is, the floor's depth)
+        uj = np.uint64(j)
+        for i in range(np.uint64(s_lo)):
+            radiance_t[uj, i] = acc[i]
+            depth_t[uj, i] = dcol[i]
+        for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):
+            radiance_t[uj, i] = floor_img[i, uj]
+            depth_t[uj, i] = floor_depth[i]
+        for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
+            radiance_t[uj, i] = acc[i]
+            depth_t[uj, i] = dcol[i]

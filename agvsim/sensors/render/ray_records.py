@@ -3,9 +3,10 @@
 The scene is flattened once per map into the array tuples below (:class:`Solids`,
 :class:`Faces`, :class:`Decals`, :class:`Textures`, :class:`Light`, :class:`Floor`) by
 :mod:`agvsim.sensors.render.raycast`; each frame adds a :class:`View`. Units: metres,
-pixels, radians; map frame x east, y north, z up. The sensor stages
-(:mod:`agvsim.sensors.render._sensor_kernels`) take a :class:`SensorParams` and a
-:class:`MotionBlurParams` per frame and a :class:`BlurScratch` per camera. This module imports no numba.
+pixels, radians; map frame x east, y north, z up. The sensor stages take a
+:class:`SensorParams` (:mod:`agvsim.sensors.render._sensor_kernels`) and a
+:class:`MotionBlurParams` (:mod:`agvsim.sensors.render._motion_blur_kernels`) per frame and a
+:class:`BlurScratch` per camera. This module imports no numba.
 """
 from __future__ import annotations
 
@@ -206,7 +207,7 @@ class FrameScratch(NamedTuple):
     """Work arrays of the raycaster's level frame for one image size (``W`` x ``H``), allocated
     once (:meth:`of`) and overwritten by every frame
     (:func:`agvsim.sensors.render._raycast_frame.render_view`): one backend draws one frame at
-    a time. ``S`` spans per ray, ``K`` hits per ray, ``B`` columns per stored block."""
+    a time. ``S`` spans per ray, ``K`` hits per ray."""
 
     hit_in: np.ndarray  # (K,) float64, m: a ray's prisms, entry depth
     hit_out: np.ndarray  # (K,) float64, m: exit depth
@@ -234,19 +235,13 @@ class FrameScratch(NamedTuple):
     dcol: np.ndarray  # (H,) float32, m: a column's depth
     shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
     texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
-    blk_rad: np.ndarray  # (H, B) float32: a block of columns' radiance, row by row
-    blk_dep: np.ndarray  # (H, B) float32, m
-    keep_lo: np.ndarray  # (B,) int64: rows a column leaves to the floor pass
-    keep_hi: np.ndarray  # (B,) int64
 
     @classmethod
-    def of(cls, width: int, height: int, spans: int, hits: int, block: int, shade: tuple[int, int]
-           ) -> FrameScratch:
+    def of(cls, width: int, height: int, spans: int, hits: int, shade: tuple[int, int]) -> FrameScratch:
         """Scratch for ``width`` x ``height`` frames (``shade``: the face kernel's scratch lengths,
         float64 and float32)."""
-        if width < 1 or height < 1 or spans < 4 or hits < 1 or block < 1 or min(shade) < 1:
-            raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}, {block}, "
-                             f"{shade}")
+        if width < 1 or height < 1 or spans < 4 or hits < 1 or min(shade) < 1:
+            raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}, {shade}")
         f8, i8, n = np.float64, np.int64, (width + 1) * spans
         return cls(np.zeros(hits), np.zeros(hits), np.zeros(hits, i8), np.zeros(hits, i8),
                    np.zeros(n), np.zeros(n), np.zeros(n, i8), np.zeros(n, i8), np.zeros(n), np.zeros(width + 1, i8),
@@ -255,6 +250,4 @@ class FrameScratch(NamedTuple):
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(height, np.float32), np.zeros(shade[0], f8),
-                   np.zeros(shade[1], np.float32),
-                   np.zeros((height, block), np.float32), np.zeros((height, block), np.float32),
-                   np.zeros(block, i8), np.zeros(block, i8))
+                   np.zeros(shade[1], np.float32))

@@ -82,39 +82,45 @@ class RaycastBackend:
 
     def draw_level(self, view: View, out: tuple[np.ndarray, np.ndarray] | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
-        """``(radiance, depth)``, both ``(H, W)`` float32, of a level view: new arrays, or ``out``
-        overwritten (two C-contiguous ``(H, W)`` float32 arrays, e.g. from :func:`frame_buffers`,
-        reused frame after frame: rows starting on a cache line, pages already mapped)."""
+        """``(radiance, depth)``, both ``(H, W)`` float32 in column-major order (Fortran order:
+        the kernel draws a column at a time and stores each contiguously), of a level view: new
+        arrays, or ``out`` overwritten (two writeable ``(H, W)`` float32 arrays in Fortran
+        order, e.g. from :func:`frame_buffers`, reused frame after frame: pages already mapped).
+        ``np.ascontiguousarray`` gives a row-major copy where one is needed."""
         from agvsim.sensors.render._raycast_frame import render_view
 
         radiance, depth = out if out is not None else frame_buffers(view.width, view.height)
         shape = (view.height, view.width)
         for a in (radiance, depth):
-            if a.shape != shape or a.dtype != np.float32 or not a.flags.c_contiguous or not a.flags.writeable:
-                raise ValueError(f"draw_level(out=) needs two writeable C-contiguous {shape} float32 arrays, got "
-                                 f"{a.dtype} {a.shape}")
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance, depth,
-                    self._scratch(view.width, view.height))
+            if (not isinstance(a, np.ndarray) or a.shape != shape or a.dtype != np.float32
+                    or not a.T.flags.c_contiguous or not a.flags.writeable):
+                got = f"{a.dtype} {a.shape}, {'F' if a.flags.f_contiguous else 'not F'}-contiguous" \
+                    if isinstance(a, np.ndarray) else type(a).__name__
+                raise ValueError(f"draw_level(out=) needs two writeable {shape} float32 arrays in column-major "
+                                 f"(Fortran) order, as frame_buffers() makes; got {got}")
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance.T,
+                    depth.T, self._scratch(view.width, view.height))
         return radiance, depth
 
     def _scratch(self, width: int, height: int) -> FrameScratch:
         """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""
         if self._work is None or self._work.acc.shape[0] != height or self._work.e_n.shape[0] != width + 1:
             from agvsim.sensors.render._raycast_face import scratch_size
-            from agvsim.sensors.render._raycast_frame import COLUMN_BLOCK
             from agvsim.sensors.render._raycast_kernels import MAX_HITS, MAX_SPANS
 
-            self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS, COLUMN_BLOCK, scratch_size(height))
+            self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS, scratch_size(height))
         return self._work
 
     def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None,
              out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(radiance, depth)``: ``(H, W)`` float32 (depth m along the optical axis, 0 = nothing),
-        new arrays or ``out`` overwritten (as :meth:`draw_level`'s).
+        new arrays or ``out`` overwritten (as :meth:`draw_level`'s), column-major (Fortran order).
 
         With pitch/roll jitter the level frame is drawn ``margin`` px larger and resampled
         through the homography ``K_m J K^-1`` of the rotation ``J`` about the lens centre
         (bilinear for radiance, nearest for depth, which is converted to the tilted axis).
+        OpenCV resamples in row-major order; the results are stored into the column-major
+        arrays.
         """
         if cam_pose.pitch == 0.0 and cam_pose.roll == 0.0:
             return self.draw_level(self.view(camera, cam_pose, level), out)
@@ -135,9 +141,9 @@ class RaycastBackend:
         size = (camera.width, camera.height)
         flags = cv2.WARP_INVERSE_MAP
         rad, dep = out if out is not None else frame_buffers(camera.width, camera.height)
-        cv2.warpPerspective(rad_level, hom, size, dst=rad, flags=cv2.INTER_LINEAR | flags,
-                            borderMode=cv2.BORDER_REPLICATE)
-        depth = cv2.warpPerspective(depth_level, hom, size, flags=cv2.INTER_NEAREST | flags,
+        rad[...] = cv2.warpPerspective(np.ascontiguousarray(rad_level), hom, size, flags=cv2.INTER_LINEAR | flags,
+                                       borderMode=cv2.BORDER_REPLICATE)
+        depth = cv2.warpPerspective(np.ascontiguousarray(depth_level), hom, size, flags=cv2.INTER_NEAREST | flags,
                                     borderMode=cv2.BORDER_REPLICATE)
         # depth along the tilted axis: Z_act = Z_level / (J (x_n, y_n, 1))_z (in float64, stored float32)
         jj, ii = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
@@ -147,15 +153,17 @@ class RaycastBackend:
 
 
 def frame_buffers(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two new ``(height, width)`` float32 arrays for a level frame's radiance and depth, each
-    starting on a 4096-byte boundary (NumPy aligns to 16 bytes; the kernel stores a block of
-    columns a row at a time, and a row that starts mid cache line costs it two lines)."""
+    """Two new ``(height, width)`` float32 arrays for a level frame's radiance and depth, in
+    column-major (Fortran) order, as :meth:`RaycastBackend.draw_level` writes them: each the
+    transpose of a C-contiguous ``(width, height)`` buffer starting on a 4096-byte boundary
+    (NumPy aligns to 16 bytes; the kernel stores a column at a time, and a column that starts
+    mid cache line costs it one more)."""
     out = []
     size = width * height * 4
     for _ in range(2):
         buf = np.empty(size + 4096, np.uint8)
         start = -buf.ctypes.data % 4096
-        out.append(buf[start:start + size].view(np.float32).reshape(height, width))
+        out.append(buf[start:start + size].view(np.float32).reshape(width, height).T)
     return out[0], out[1]
 
 

@@ -15,8 +15,9 @@ One renderer per world, reused for every frame. Backends (:data:`agvsim.sensors.
 
 Pipeline per frame: the backend's radiance and depth (surface reflectance x the lighting
 of :mod:`agvsim.sensors.render.lighting`) -> the sensor (:mod:`agvsim.sensors.render.sensor`;
-compiled for the raycaster: :mod:`agvsim.sensors.render._sensor_kernels`): motion blur,
-defocus, distortion, exposure, noise, saturation, 8 bits -> truth
+compiled for the raycaster: :mod:`agvsim.sensors.render._motion_blur_kernels`,
+:mod:`agvsim.sensors.render._sensor_kernels`): motion blur, defocus, distortion, exposure,
+noise, saturation, 8 bits -> truth
 (:mod:`agvsim.sensors.render.truth`): d, α, β, corners, bbox, visibility by depth test.
 """
 from __future__ import annotations
@@ -101,6 +102,11 @@ class RenderConditions:
         return cls(**base)
 
 
+def _row_major(a: np.ndarray) -> np.ndarray:
+    """``a`` (2-D) if it is row-major, else a row-major copy."""
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+
+
 class CameraRenderer:
     """Renders camera frames of one map; create once per world and reuse.
 
@@ -137,6 +143,7 @@ class CameraRenderer:
         self._distortion_maps = None
         self._blur_scratch = None
         self._frame_buffers = None  # raycast: the frame's radiance and depth, drawn into every frame
+        self._columns_u8 = None  # raycast: a block of the 8-bit frame's columns, before they are stored
         if self.backend == "pyrender":
             from agvsim.sensors.render.pyrender_backend import PyrenderBackend
 
@@ -222,32 +229,49 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        from agvsim.sensors.render._sensor_kernels import expose, motion_blur, nearest_depth
+        from agvsim.sensors.render._motion_blur_kernels import motion_blur
+        from agvsim.sensors.render._sensor_kernels import expose, expose_columns, expose_scratch, nearest_depth
 
         c = self.camera
         if self._frame_buffers is None:  # the backend draws into them (nothing render() returns refers to them)
             from agvsim.sensors.render.raycast import frame_buffers
 
             self._frame_buffers = frame_buffers(c.width, c.height)
+        # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes them
+        # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics take
+        # row-major copies
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
         v, w = conditions.velocity
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
-                                        conditions.exposure_time, z_min=nearest_depth(depth))
+                                        conditions.exposure_time, z_min=nearest_depth(depth.T))
             if motion is not None:
                 if self._blur_scratch is None:  # the blurred frame and the blur's work arrays, reused
                     self._blur_scratch = (np.empty((c.height, c.width), np.float32), BlurScratch.of(c.height, c.width))
                 blurred, scratch = self._blur_scratch
-                motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
+                motion_blur(_row_major(radiance), _row_major(depth), MotionBlurParams(c.fx, c.fy, c.cx, c.cy,
+                                                                                      *motion[:4]),
+                            blurred, scratch)
                 radiance = blurred
-        radiance = self._optics(radiance, depth, conditions)
+        if self._optics_apply(conditions):
+            radiance = self._optics(_row_major(radiance), _row_major(depth), conditions)
         s = self.sensor
         seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
                               float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
         image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
-        expose(np.ascontiguousarray(radiance), params, image)  # the kernel reads it flat
+        if radiance.flags.c_contiguous:
+            expose(radiance, params, image)  # the kernel reads it flat
+        else:  # column-major: exposed a block of columns at a time, stored row by row
+            if self._columns_u8 is None:
+                self._columns_u8 = expose_scratch(c.height)
+            expose_columns(radiance.T, params, image, self._columns_u8)
         return image, depth
+
+    def _optics_apply(self, conditions: RenderConditions) -> bool:
+        """Whether :meth:`_optics` changes the radiance under ``conditions``."""
+        return ((conditions.focus_distance is not None and conditions.aperture > 0) or conditions.defocus_px > 0
+                or bool(conditions.distortion and self.camera.dist))
 
     def _camera_twist(self, pose, v: float, w: float, cam_pose: CameraPose):
         """Camera linear (m/s) and angular (rad/s) velocity in the camera frame."""
