@@ -74,9 +74,9 @@ class RaycastBackend:
         image grown by ``margin`` px on every side."""
         h = cam_pose.heading
         c, s = math.cos(h), math.sin(h)
+        x, y, z = cam_pose.position.tolist()  # (floats: one call, not three numpy scalars)
         return View(float(camera.fx), float(camera.fy), float(camera.cx + margin), float(camera.cy + margin),
-                    int(camera.width + 2 * margin), int(camera.height + 2 * margin),
-                    float(cam_pose.position[0]), float(cam_pose.position[1]), float(cam_pose.position[2]),
+                    int(camera.width + 2 * margin), int(camera.height + 2 * margin), x, y, z,
                     c, s, s, -c, -1.0 if level is None else float(level),
                     float(self.lighting_default if level is None else level), NEAR, self.subcolumns)
 
