@@ -14,7 +14,8 @@
   exact horizontal integral, rows blended at the path's midpoint) on textured scenes with
   yaw, sideways and forward motion, far pixels, paths clipped at the image sides, paths
   within one pixel, and vertical smears longer than the ring of prefix rows;
-* ``nearest_depth`` is the smallest positive depth.
+* ``nearest_depth`` is the smallest positive depth; ``transpose_into`` gives the row-major
+  frame of a column-major one (whole 8 x 8 blocks and the rows and columns past them).
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ import pytest
 from scipy.special import ndtr
 
 from agvsim.sensors.render import sensor as sn
-from agvsim.sensors.render._motion_blur_kernels import motion_blur
+from agvsim.sensors.render._motion_blur_kernels import motion_blur, transpose_into
 from agvsim.sensors.render._sensor_kernels import (
     expose,
     expose_columns,
@@ -179,6 +180,14 @@ def test_expose_without_noise_rounds_and_saturates():
     out = np.empty(radiance.shape, np.uint8)
     expose(radiance, SensorParams(235.0, 5.0, 20000.0 / 255.0, 0.8, 0.0, 1), out)
     assert out.tolist() == [[5, 123, 240, 255, 0, 11, 10]]  # 10.546 and 10.452 grey levels
+
+
+@pytest.mark.parametrize("w, h", [(512, 480), (257, 301), (5, 3)])
+def test_transpose_into_gives_the_row_major_frame(w, h):
+    src = np.random.default_rng(w).random((w, h), dtype=np.float32)  # column-major: column j at src[j]
+    dst = np.full((h, w), np.nan, np.float32)
+    transpose_into(src, dst)
+    assert np.array_equal(dst, src.T)
 
 
 def test_nearest_depth():

@@ -229,7 +229,7 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        from agvsim.sensors.render._motion_blur_kernels import motion_blur
+        from agvsim.sensors.render._motion_blur_kernels import motion_blur, transpose_into
         from agvsim.sensors.render._sensor_kernels import expose, expose_columns, expose_scratch, nearest_depth
 
         c = self.camera
@@ -239,19 +239,22 @@ class CameraRenderer:
             self._frame_buffers = frame_buffers(c.width, c.height)
         # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes them
         # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics take
-        # row-major copies
+        # row-major copies (and the depth returned for the truth is then the row-major one)
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
         v, w = conditions.velocity
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time, z_min=nearest_depth(depth.T))
             if motion is not None:
-                if self._blur_scratch is None:  # the blurred frame and the blur's work arrays, reused
-                    self._blur_scratch = (np.empty((c.height, c.width), np.float32), BlurScratch.of(c.height, c.width))
-                blurred, scratch = self._blur_scratch
-                motion_blur(_row_major(radiance), _row_major(depth), MotionBlurParams(c.fx, c.fy, c.cx, c.cy,
-                                                                                      *motion[:4]),
-                            blurred, scratch)
+                if self._blur_scratch is None:  # the blurred frame, row-major copies, the blur's work arrays
+                    self._blur_scratch = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
+                                          BlurScratch.of(c.height, c.width))
+                blurred, rad_rows, dep_rows, scratch = self._blur_scratch
+                if not radiance.flags.c_contiguous:  # the level frame, column-major
+                    transpose_into(radiance.T, rad_rows)
+                    transpose_into(depth.T, dep_rows)
+                    radiance, depth = rad_rows, dep_rows
+                motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
                 radiance = blurred
         if self._optics_apply(conditions):
             radiance = self._optics(_row_major(radiance), _row_major(depth), conditions)
