@@ -12,10 +12,13 @@ Measured in one process with one GL context:
   default route;
 * the raycast backend on the same poses in the same run: the level frame alone, and the
   full ``render()`` still and moving (motion blur), plus its start-up (scene flattening,
-  kernel load or compile).
+  kernel load or compile); over ``--passes`` passes, the median of all frames and the median
+  over poses of each pose's fastest pass (a shared host's other tenants slow single frames
+  by up to a third), and the frame floor's verdict.
 """
 from __future__ import annotations
 
+import math
 import statistics
 import time
 
@@ -25,6 +28,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--frames", type=int, default=40, help="timed frames per configuration (default: %(default)s)")
     parser.add_argument("--lens", type=float, default=16.0, help="thesis lens, mm (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--passes", type=int, default=5,
+                        help="passes over the poses for the raycaster's figures (default: %(default)s)")
 
 
 def _median_ms(fn, poses) -> float:
@@ -36,8 +41,27 @@ def _median_ms(fn, poses) -> float:
     return 1000.0 * statistics.median(times)
 
 
+def _passes_ms(fn, poses, passes: int) -> dict:
+    """``fn`` timed on every pose, ``passes`` times over (a pass visits every pose in turn): the
+    median of all the frames (ms), and the median over poses of each pose's fastest pass (ms:
+    what this machine does when other tenants of the host leave it alone)."""
+    best = [math.inf] * len(poses)
+    times = []
+    for _ in range(passes):
+        for q, p in enumerate(poses):
+            t0 = time.perf_counter()
+            fn(p)
+            t = time.perf_counter() - t0
+            times.append(t)
+            best[q] = min(best[q], t)
+    return {"median": 1000.0 * statistics.median(times), "median_of_best": 1000.0 * statistics.median(best),
+            "passes": passes}
+
+
+FRAME_FLOOR_MS = 2.0  # issue 12: a full raycast frame, median over the route's poses
+
+
 def run(args) -> dict:
-    import math
     import os
 
     import numpy as np
@@ -50,6 +74,8 @@ def run(args) -> dict:
 
     if args.frames < 1:
         raise ValueError("--frames must be >= 1")
+    if args.passes < 1:
+        raise ValueError(f"--passes must be >= 1, got {args.passes}")
     world_map = load_map(args.map)
     camera = Camera.thesis(args.lens)
     poses = route_poses(world_map, args.frames, lookahead_target=False)
@@ -80,8 +106,8 @@ def run(args) -> dict:
     ray.render(poses[0], RenderConditions(velocity=(1.0, 0.5)), rng)
     ray_first_s = time.perf_counter() - t0
 
-    def ray_level(p):
-        ray.engine.draw(camera, ray.camera_pose(p), None)
+    def ray_level(p):  # into the renderer's frame buffers, as render() draws
+        ray.engine.draw(camera, ray.camera_pose(p), None, ray._frame_buffers)
 
     # lit PBR pass for comparison (pyrender's own lighting, not used by the renderer)
     pyrender, scene, node = r1.engine.gl_scene
@@ -118,12 +144,19 @@ def run(args) -> dict:
                 lambda p: r2.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng), poses),
         },
     }
+    n = args.passes
+    level = _passes_ms(ray_level, poses, n)
+    still = _passes_ms(lambda p: ray.render(p, RenderConditions(), rng), poses, n)
+    moving = _passes_ms(lambda p: ray.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng),
+                        poses, n)
     res["raycast"] = {
         "startup_s": {"renderer_object": ray_construct_s, "first_frame_total": ray_first_s},
-        "level_frame_ms": _median_ms(ray_level, poses),
-        "render_ms": _median_ms(lambda p: ray.render(p, RenderConditions(), rng), poses),
-        "render_motion_blur_ms": _median_ms(
-            lambda p: ray.render(p, RenderConditions(velocity=(1.0, 0.5), exposure_time=0.02), rng), poses),
+        "passes": n,
+        "level_frame_ms": level["median"], "render_ms": still["median"], "render_motion_blur_ms": moving["median"],
+        "best_of_passes_ms": {"level_frame": level["median_of_best"], "render": still["median_of_best"],
+                              "render_motion_blur": moving["median_of_best"]},
+        "floor": {"render_median_ms_max": FRAME_FLOOR_MS, "met": still["median"] <= FRAME_FLOOR_MS,
+                  "met_best_of_passes": still["median_of_best"] <= FRAME_FLOOR_MS},
     }
     res["raycast"]["speed_up_vs_pyrender_default"] = res["render_ms"]["supersample_2"] / res["raycast"]["render_ms"]
     res["fps_default"] = 1000.0 / res["render_ms"]["supersample_2"] if res["render_ms"]["supersample_2"] else math.nan
@@ -155,6 +188,8 @@ def format_table(res: dict) -> str:
     s = res["startup_s"]
     g = res["gl_only_ms"]
     r = res["render_ms"]
+    ray = res["raycast"]
+    best, floor = ray["best_of_passes_ms"], ray["floor"]
     lines = [
         f"agvsim bench render: {res['map']}, {res['width']}x{res['height']}, {res['lens_mm']:g} mm lens, "
         f"{res['frames']} poses along the default route",
@@ -171,11 +206,15 @@ def format_table(res: dict) -> str:
         f"  render(), supersample 1          {r['supersample_1']:7.1f}",
         f"  render(), supersample 2 (default){r['supersample_2']:7.1f}",
         f"  render(), ss 2 + motion blur     {r['supersample_2_motion_blur']:7.1f}",
-        "raycast backend, same poses (median ms per frame):",
-        f"  level frame (scene + lighting)   {res['raycast']['level_frame_ms']:7.2f}",
-        f"  render() (+ sensor, truth)       {res['raycast']['render_ms']:7.2f}   "
-        f"({res['raycast']['speed_up_vs_pyrender_default']:.0f}x pyrender's default)",
-        f"  render() + motion blur           {res['raycast']['render_motion_blur_ms']:7.2f}",
+        f"raycast backend, same poses, {ray['passes']} passes (ms per frame: median of all frames; median "
+        "over poses of each pose's fastest pass):",
+        f"  level frame (scene + lighting)   {ray['level_frame_ms']:7.2f}  {best['level_frame']:7.2f}",
+        f"  render() (+ sensor, truth)       {ray['render_ms']:7.2f}  {best['render']:7.2f}   "
+        f"({ray['speed_up_vs_pyrender_default']:.0f}x pyrender's default)",
+        f"  render() + motion blur           {ray['render_motion_blur_ms']:7.2f}  {best['render_motion_blur']:7.2f}",
+        f"floor: render() median <= {floor['render_median_ms_max']:g} ms (issue 12): "
+        f"{'met' if floor['met'] else 'NOT met'} ({ray['render_ms']:.2f}; best of passes "
+        f"{best['render']:.2f}: {'met' if floor['met_best_of_passes'] else 'not met'})",
         f"  start-up: scene {res['raycast']['startup_s']['renderer_object']:.2f} s, first frame (kernels) "
         f"{res['raycast']['startup_s']['first_frame_total']:.2f} s",
     ]

@@ -55,6 +55,9 @@ def test_bench_render_json():
     res = json.loads(out.stdout)
     assert res["platform"] in ("egl", "osmesa")
     assert res["render_ms"]["supersample_2"] > 0 and res["startup_s"]["gl_context"] > 0
+    ray = res["raycast"]
+    assert ray["passes"] == 5 and 0 < ray["best_of_passes_ms"]["render"] <= ray["render_ms"] * 1.5
+    assert ray["floor"]["met"] == (ray["render_ms"] <= ray["floor"]["render_median_ms_max"] == 2.0)
 
 
 def test_camera_strip(tmp_path, gl_context):
