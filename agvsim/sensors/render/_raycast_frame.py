@@ -220,7 +220,7 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
 
     The column pass shades each column into contiguous scratch and stores it whole where the
     frame holds it contiguously (a row-major frame would take each column a pixel per row,
-    one cache line each: a third of the frame's time, storing blocks of columns row by row).
+    one cache line each: a fifth of the frame's time, storing blocks of columns row by row).
     The floor pass draws into ``work.floor_img`` (rows padded past a power-of-two stride: the
     columns read it down a column, and rows 2 kB apart would share a few sets of the cache);
     where a column's largest floor span covers the rows whole and the pass drew them, the

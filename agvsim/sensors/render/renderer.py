@@ -102,11 +102,6 @@ class RenderConditions:
         return cls(**base)
 
 
-def _row_major(a: np.ndarray) -> np.ndarray:
-    """``a`` (2-D) if it is row-major, else a row-major copy."""
-    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
-
-
 class CameraRenderer:
     """Renders camera frames of one map; create once per world and reuse.
 
@@ -141,7 +136,7 @@ class CameraRenderer:
         self.illumination = Illumination.from_map(world_map)
         self._truth_geometry = TruthGeometry.of(world_map)
         self._distortion_maps = None
-        self._blur_scratch = None
+        self._row_buffers = None  # raycast: row-major copies of the frame and motion blur's arrays
         self._frame_buffers = None  # raycast: the frame's radiance and depth, drawn into every frame
         self._columns_u8 = None  # raycast: a block of the 8-bit frame's columns, before they are stored
         if self.backend == "pyrender":
@@ -237,27 +232,29 @@ class CameraRenderer:
             from agvsim.sensors.render.raycast import frame_buffers
 
             self._frame_buffers = frame_buffers(c.width, c.height)
-        # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes them
-        # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics take
+        # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes it
+        # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics read
         # row-major copies (and the depth returned for the truth is then the row-major one)
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
         v, w = conditions.velocity
+        motion = None
         if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time, z_min=nearest_depth(depth.T))
+        optics = self._optics_apply(conditions)
+        if motion is not None or optics:
+            if self._row_buffers is None:  # row-major copies, the blurred frame, the blur's work arrays
+                self._row_buffers = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
+                                     BlurScratch.of(c.height, c.width))
+            rad_rows, dep_rows, blurred, scratch = self._row_buffers
+            transpose_into(radiance.T, rad_rows)
+            transpose_into(depth.T, dep_rows)
+            radiance, depth = rad_rows, dep_rows
             if motion is not None:
-                if self._blur_scratch is None:  # the blurred frame, row-major copies, the blur's work arrays
-                    self._blur_scratch = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
-                                          BlurScratch.of(c.height, c.width))
-                blurred, rad_rows, dep_rows, scratch = self._blur_scratch
-                if not radiance.flags.c_contiguous:  # the level frame, column-major
-                    transpose_into(radiance.T, rad_rows)
-                    transpose_into(depth.T, dep_rows)
-                    radiance, depth = rad_rows, dep_rows
                 motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
                 radiance = blurred
-        if self._optics_apply(conditions):
-            radiance = self._optics(_row_major(radiance), _row_major(depth), conditions)
+            if optics:
+                radiance = self._optics(radiance, depth, conditions)
         s = self.sensor
         seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
         params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
