@@ -33,12 +33,8 @@ def add_arguments(parser) -> None:
 
 
 def _median_ms(fn, poses) -> float:
-    times = []
-    for p in poses:
-        t0 = time.perf_counter()
-        fn(p)
-        times.append(time.perf_counter() - t0)
-    return 1000.0 * statistics.median(times)
+    """Median ms per frame of ``fn`` over one pass of ``poses``."""
+    return _passes_ms(fn, poses, 1)["median"]
 
 
 def _passes_ms(fn, poses, passes: int) -> dict:
