@@ -101,12 +101,13 @@ class RenderedSource:
         # renderer's visible targets, plus facing, unoccluded ones whose printed margin is cut by
         # the image border (the localizer still finds their bars there)
         half = self.vision.view_limits().half_fov + 0.05
-        visible = []
-        for i, t in enumerate(truth.targets):
-            partly = (t.facing and t.occluded_fraction < 0.5 and math.isfinite(t.distance) and t.distance > 0
-                      and abs(t.beta) <= half)
-            if t.visible or partly:
-                visible.append((i, TargetPose(t.distance, t.beta, t.alpha, t.height if math.isfinite(t.height) else 0.0)))
+        facing, occ, dist, beta = (truth.column(k) for k in ("facing", "occluded", "d", "beta"))
+        candidates = truth.column("visible") | (facing & (occ < 0.5) & np.isfinite(dist) & (dist > 0)
+                                                 & (np.abs(beta) <= half))
+        alpha, height = truth.column("alpha"), truth.column("height")
+        visible = [(i, TargetPose(float(dist[i]), float(beta[i]), float(alpha[i]),
+                                  float(height[i]) if math.isfinite(height[i]) else 0.0))
+                   for i in candidates.nonzero()[0].tolist()]
         spec = self.map.targets[0].spec if self.map.targets else TargetSpec()
         out = []
         t0 = time.perf_counter()

@@ -6,6 +6,7 @@ some targets (nearer surfaces, empty pixels), at supersample 1 and 2: floats equ
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,8 +15,8 @@ from localizer.camera import Camera
 from localizer.geometry import TargetPose
 from agvsim.sensors.render.mount import CameraPose, level_rotation
 from agvsim.sensors.render.strip import route_poses
-from agvsim.sensors.render.truth import (MAX_ALPHA, MIN_BAR_PX, MIN_ROWS, NEAR, OCCLUSION_GRID, FrameTruth,
-                                         TargetTruth, TruthGeometry, frame_truth)
+from agvsim.sensors.render.truth import (MAX_ALPHA, MIN_BAR_PX, MIN_ROWS, NEAR, OCCLUSION_GRID, TRUTH_COLUMNS,
+                                         FrameTruth, TargetTruth, TruthGeometry, frame_truth)
 from agvsim.world import load_map
 
 N_POSES = 40
@@ -105,8 +106,8 @@ def _reference_frame_truth(world_map, camera, cam_pose, vehicle_pose, depth, sup
             occluded_fraction=float(occluded), in_envelope=in_env, distance=pose.distance, alpha=pose.alpha,
             beta=pose.beta, z=pose.z, height=pose.height, corners=corners, bbox=bbox,
             bar_width_px=bar_w, bar_rows=bar_rows))
-    return FrameTruth(camera=camera, vehicle_pose=tuple(float(v) for v in vehicle_pose), camera_pose=cam_pose,
-                      lighting=lighting, targets=tuple(out))
+    return SimpleNamespace(camera=camera, vehicle_pose=tuple(float(v) for v in vehicle_pose),
+                           camera_pose=cam_pose, lighting=lighting, targets=tuple(out))
 
 
 # ---------------------------------------------------------------- helpers
@@ -223,3 +224,25 @@ def test_a_map_without_targets(route):
 
 def _k(c: Camera):
     return c.fx, c.fy, c.cx, c.cy, c.width, c.height
+
+
+def test_columns_are_the_targets_fields(route):
+    """:meth:`FrameTruth.column` reads the same numbers as :attr:`FrameTruth.targets`, flags as bool."""
+    m, cams = route
+    cam = Camera.thesis(16.0)
+    fields = {"d": "distance", "beta": "beta", "alpha": "alpha", "z": "z", "height": "height",
+              "occluded": "occluded_fraction", "bar_width_px": "bar_width_px", "bar_rows": "bar_rows",
+              "facing": "facing", "in_view": "in_view", "visible": "visible", "in_envelope": "in_envelope"}
+    seen = 0
+    for vp, cp in cams[:12]:
+        truth = frame_truth(m, cam, cp, vp, np.full((480, 512), 50.0))
+        seen += int(truth.column("visible").sum())
+        assert isinstance(truth, FrameTruth) and truth.table.values.shape == (len(m.targets), len(TRUTH_COLUMNS))
+        for col, attr in fields.items():
+            got = truth.column(col)
+            want = np.array([getattr(t, attr) for t in truth.targets])
+            assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=got.dtype.kind == "f"), col
+        assert np.array_equal(truth.column("bbox_x0"), [t.bbox[0] for t in truth.targets], equal_nan=True)
+    assert seen > 0 and not truth.table.values.flags.writeable
+    with pytest.raises(ValueError, match="unknown column 'range'"):
+        truth.column("range")

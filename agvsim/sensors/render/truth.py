@@ -14,26 +14,31 @@ buffer shows nothing in front of it at any of a grid of points on the face.
 >= 16 rows tall, |α| <= 70°).
 
 :func:`frame_truth` works on all targets at once: :class:`TruthGeometry` holds,
-per target, its frame (the face's across and down directions and its centre in
-the map) and the target coordinates of every point projected (built once per
-map and cached), so a frame costs a few dozen NumPy operations on
-``(n_targets, k, 3)`` arrays: all targets' level-frame pose and whether they
-are in front of the lens, the image geometry of those in front, the
-depth-buffer test of those in view.
+per target, its frame (the face's across and down directions and its centre in the map)
+and the target coordinates of every point projected (built once per map and cached); a
+compiled kernel (:mod:`agvsim.sensors.render._truth_kernels`) fills one table per frame
+with every target's level-frame pose and whether it is in front of the lens, the image
+geometry of those in front, and the depth-buffer test of those in view. Only a distorted
+frame's projection is NumPy's (:meth:`localizer.camera.Camera.project`).
 """
 from __future__ import annotations
 
 import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from localizer.camera import Camera
 from localizer.geometry import TargetPose
+from agvsim.sensors.render import _truth_kernels as tk
+from agvsim.sensors.render._truth_kernels import COLUMNS as TRUTH_COLUMNS
 from agvsim.sensors.render.mount import CameraPose, level_rotation
 
 OCCLUSION_GRID = (7, 5)  # sample points across x down the printed face
+_COL = {name: k for k, name in enumerate(TRUTH_COLUMNS)}
+_FLAGS = frozenset(("facing", "in_front", "in_view", "visible", "in_envelope"))
 MIN_BAR_PX = 5.0
 MIN_ROWS = 16.0
 MAX_ALPHA = math.radians(70.0)
@@ -87,6 +92,23 @@ class TargetTruth:
 
 
 @dataclass(frozen=True)
+class TruthTable:
+    """A frame's truth as one table: what :attr:`FrameTruth.targets` is built from.
+
+    Attributes:
+        ids, polarities: of the targets reported, in map order (a target whose centre is at
+            the lens is left out).
+        values: ``(n, len(TRUTH_COLUMNS))`` float64, read-only, row per target, columns
+            :data:`TRUTH_COLUMNS` (SI units, pixels; flags 0.0 / 1.0; corners and bbox NaN for a
+            target not in front of the lens).
+    """
+
+    ids: tuple[str, ...]
+    polarities: tuple[str, ...]
+    values: np.ndarray
+
+
+@dataclass(frozen=True)
 class FrameTruth:
     """Ground truth of one frame.
 
@@ -95,14 +117,47 @@ class FrameTruth:
         vehicle_pose: ``(x m, y m, θ rad)``.
         camera_pose: the camera's pose (jitter included).
         lighting: the lighting override level, or None when the map's zones were used.
-        targets: one :class:`TargetTruth` per map target, in map order.
+        table: the numbers, one row per target (:class:`TruthTable`); :attr:`targets` and
+            :meth:`column` read it.
     """
 
     camera: Camera
     vehicle_pose: tuple[float, float, float]
     camera_pose: CameraPose
     lighting: float | None
-    targets: tuple[TargetTruth, ...]
+    table: TruthTable = field(repr=False)
+
+    @cached_property
+    def targets(self) -> tuple[TargetTruth, ...]:
+        """One :class:`TargetTruth` per map target, in map order (built at the first access)."""
+        tab = self.table
+        n = len(tab.ids)
+        if n == 0:
+            return ()
+        out = []
+        new, set_dict = object.__new__, object.__setattr__
+        corners = tab.values[:, _COL["x_tl"]:_COL["bbox_x0"]].reshape(n, 4, 2)  # (views)
+        for row, cor, i, pol in zip(tab.values.tolist(), corners, tab.ids, tab.polarities):
+            d, bt, a, zz, h, *_, b0, b1, b2, b3, bw, br, occ, fac, _, inv, vis, env = row
+            # the frozen dataclass is filled without its __init__ (sixteen object.__setattr__ calls)
+            t = new(TargetTruth)
+            set_dict(t, "__dict__", {
+                "id": i, "polarity": pol, "visible": vis != 0.0, "in_view": inv != 0.0, "facing": fac != 0.0,
+                "occluded_fraction": occ, "in_envelope": env != 0.0, "distance": d, "alpha": a, "beta": bt,
+                "z": zz, "height": h, "corners": cor, "bbox": (b0, b1, b2, b3), "bar_width_px": bw,
+                "bar_rows": br})
+            out.append(t)
+        return tuple(out)
+
+    def column(self, name: str) -> np.ndarray:
+        """``(n,)`` one of :data:`TRUTH_COLUMNS` over the targets reported (map order, as
+        :attr:`targets`): float64, or bool for the flags (``facing``, ``in_front``, ``in_view``,
+        ``visible``, ``in_envelope``). Cheaper than :attr:`targets` for a loop over a frame's
+        targets that reads a few fields."""
+        if name not in _COL:
+            raise ValueError(f"FrameTruth.column: unknown column {name!r}; expected one of {', '.join(TRUTH_COLUMNS)}")
+        col = self.table.values[:, _COL[name]]
+        return col != 0.0 if name in _FLAGS else col
 
     @property
     def visible(self) -> tuple[TargetTruth, ...]:
@@ -156,7 +211,6 @@ ACTIVE, OUTER, EDGES_TOP, EDGES_BOTTOM = slice(0, 4), slice(4, 8), slice(8, 12),
 IMAGE = slice(0, 16)  # the points whose image the truth reports (corners, bbox, bar sizes)
 GRID = slice(16, 16 + OCCLUSION_GRID[0] * OCCLUSION_GRID[1])  # the occlusion test's face points
 N_POINTS = GRID.stop  # 51
-_CENTRE_ROW = np.array([[0.0], [0.0], [1.0]])  # selects the centre row of a (3, 3) target frame
 
 
 class TruthGeometry:
@@ -235,79 +289,37 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     """
     g = geometry if geometry is not None else TruthGeometry.of(world_map)
     n = len(g.targets)
-    rows = (g.frame - cam_pose.position * _CENTRE_ROW).reshape(3 * n, 3)  # centre row now lens -> centre
     level = level_rotation(cam_pose.heading)
-    lv = rows @ level  # (3n, 3) level camera frame
-    rot = cam_pose.rotation  # no jitter: the level rotation's very bits, and the product is the same
-    act = (lv if rot.tobytes() == level.tobytes() else rows @ rot).reshape(n, 3, 3)  # actual camera frame
-    # level-frame pose (as level_target_pose): p the centre, (cos α, 0, -sin α) across
-    p, across = lv[2::3], lv[0::3]  # (n, 3)
-    d = np.hypot(p[:, 0], p[:, 2])
-    beta = np.arctan2(p[:, 0], p[:, 2])
-    alpha = np.arctan2(-across[:, 2], across[:, 0])
-    z = d * np.cos(beta)
-    facing = across[:, 2] * p[:, 0] - across[:, 0] * p[:, 2] < 0.0  # normal . (lens - centre) > 0
-    in_front = (g._outer @ act[:, :, 2:]).min(axis=1)[:, 0] > NEAR  # the printed face's corners
-    table = g._blank.copy()  # (n, 15): corners (8, NaN), bbox (4, NaN), bar_width_px, bar_rows, occluded (0)
-    corners, bbox, bars, occluded = table[:, :8].reshape(n, 4, 2), table[:, 8:12], table[:, 12:14], table[:, 14]
-    in_view = np.zeros(n, dtype=bool)
-    f = in_front.nonzero()[0]
-    if len(f):
-        pts = g._image[f] @ act[f]  # (m, 16, 3) m
-        k = np.array([[camera.fx, 0.0], [0.0, camera.fy], [camera.cx, camera.cy]])
-        px = camera.project(pts) if distorted and camera.dist else _pinhole(pts, k)  # (m, 16, 2) px
-        # corners (ACTIVE), bbox (of OUTER), in_view, bars (EDGES_TOP, EDGES_BOTTOM), compiled
-        from agvsim.sensors.render._truth_kernels import image_geometry
-
-        image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table, in_view)
-        iv = in_view[f]
-        if depth is not None and iv.any():
-            seen = f[iv]
-            grid = g._grid[seen] @ act[seen]  # (len(seen), 35, 3) m
-            occluded[seen] = _occluded_fraction(_pinhole(grid, k), grid[..., 2], depth, supersample)
-    visible = facing & in_view & (occluded == 0.0)
-    in_env = visible & (bars[:, 0] >= MIN_BAR_PX) & (bars[:, 1] >= MIN_ROWS) & (np.abs(alpha) <= MAX_ALPHA)
-    out = []
-    new, set_dict = object.__new__, object.__setattr__
-    for ok, i, pol, vis, inv, fac, occ, env, dist, a, bt, zz, h, cor, box, (bw, br) in zip(
-            (d > 1e-9).tolist(), g._ids, g._polarities, visible.tolist(), in_view.tolist(), facing.tolist(),
-            occluded.tolist(), in_env.tolist(), d.tolist(), alpha.tolist(), beta.tolist(), z.tolist(),
-            p[:, 1].tolist(), corners, map(tuple, bbox.tolist()), bars.tolist()):
-        if ok:  # a centre at the lens has no pose. The frozen dataclass is filled without its
-            # __init__, whose sixteen object.__setattr__ calls per target would double a frame's time
-            t = new(TargetTruth)
-            set_dict(t, "__dict__", {
-                "id": i, "polarity": pol, "visible": vis, "in_view": inv, "facing": fac, "occluded_fraction": occ,
-                "in_envelope": env, "distance": dist, "alpha": a, "beta": bt, "z": zz, "height": h,
-                "corners": cor, "bbox": box, "bar_width_px": bw, "bar_rows": br})
-            out.append(t)
+    rot = cam_pose.rotation  # no jitter: the level rotation's very bits
+    jittered = rot.tobytes() != level.tobytes()
+    params = tk.TruthParams(float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy),
+                            int(camera.width), int(camera.height), int(supersample), NEAR, MIN_BAR_PX, MIN_ROWS,
+                            MAX_ALPHA)
+    position = np.asarray(cam_pose.position, dtype=np.float64)
+    has_depth = depth is not None
+    depth = depth if has_depth else _NO_DEPTH
+    table = tk.blank_table(n)
+    act = np.empty((n, 3, 3))
+    if n and not (distorted and camera.dist):
+        tk.frame_table(g.frame, position, rot, level, jittered, g._outer, g._image, g._grid, params, depth, has_depth,
+                       act, table, np.empty((1, IMAGE.stop, 2)))
+    elif n:  # the image geometry through the lens distortion (NumPy), the rest compiled
+        tk.target_poses(g.frame, position, rot, level, jittered, g._outer, NEAR, act, table)
+        f = (table[:, _COL["in_front"]] != 0.0).nonzero()[0]
+        if len(f):
+            px = camera.project(g._image[f] @ act[f])  # (m, 16, 2) px
+            tk.image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table)
+        tk.occlusion_verdicts(g._grid, act, params, depth, has_depth, table)
+    kept = table[:, 0] > 1e-9  # a centre at the lens has no pose
+    if kept.all():
+        ids, polarities = tuple(g._ids), tuple(g._polarities)
+    else:
+        table = table[kept]
+        ids = tuple(i for i, k in zip(g._ids, kept) if k)
+        polarities = tuple(p for p, k in zip(g._polarities, kept) if k)
+    table.flags.writeable = False
     return FrameTruth(camera=camera, vehicle_pose=tuple(float(v) for v in vehicle_pose), camera_pose=cam_pose,
-                      lighting=lighting, targets=tuple(out))
+                      lighting=lighting, table=TruthTable(ids, polarities, table))
 
 
-def _pinhole(pts: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """``(..., 2)`` undistorted pixel x, y of camera-frame points ``(..., 3)`` (m, in front of the lens):
-    ``[X/Z, Y/Z, 1] @ k``, ``k`` the ``(3, 2)`` ``[[fx, 0], [0, fy], [cx, cy]]``."""
-    return (pts / pts[..., 2:]) @ k
-
-
-def _occluded_fraction(px: np.ndarray, z: np.ndarray, depth: np.ndarray, supersample: int) -> np.ndarray:
-    """Per target, the share of its face points behind something nearer in ``depth``.
-
-    Args:
-        px: ``(m, k, 2)`` undistorted pixel x, y of the face points; z: ``(m, k)`` their range (m).
-        depth: ``(H * s, W * s)`` depth buffer (m, 0 = nothing) rendered with ``supersample`` s.
-    Returns:
-        ``(m,)`` fractions in [0, 1]; 1 for a target none of whose points falls in the buffer.
-
-    Compiled (:func:`agvsim.sensors.render._truth_kernels.occluded_fraction`): the same as
-    sampling the buffer at ``floor((px + 0.5) s)`` in NumPy, bit for bit; hidden: nothing there
-    (0) or something nearer than ``z - (0.004 + 0.0005 z)`` (as the points are > NEAR away the
-    threshold is > 0, so that is ``0 <= zbuf < threshold``).
-    """
-    out = np.empty(z.shape[0])
-    from agvsim.sensors.render._truth_kernels import occluded_fraction
-
-    occluded_fraction(np.ascontiguousarray(px, dtype=np.float64), np.ascontiguousarray(z, dtype=np.float64),
-                      depth, int(supersample), out)
-    return out
+_NO_DEPTH = np.zeros((0, 0), np.float32)  # (the depth argument of a frame without a buffer: not read)
