@@ -70,9 +70,9 @@ def exact_normals(seed: int, n: int, first_pair: int = 0) -> np.ndarray:
     m = n // 2
     k = np.arange(m + 1, dtype=np.uint64) + np.uint64(first_pair)
     with np.errstate(over="ignore"):
-        c = np.uint64(seed) + (np.uint64(2) * k + np.uint64(1)) * _GOLDEN
-        bits_r = _splitmix64(c) | np.uint64(1)
-        bits_a = _splitmix64(c + _GOLDEN)
+        bits = _splitmix64(np.uint64(seed) + (k + np.uint64(1)) * _GOLDEN)
+    bits_r = (bits & np.uint64(0xFFFFFFFF00000000)) | np.uint64(1 << 31)  # the radius: high 32 bits
+    bits_a = bits << np.uint64(32)  # the angle: low 32 bits
     e, y = _leading_zeros(bits_r)
     u = (y >> np.uint64(40)).astype(float) * 2.0 ** -23 * 2.0 ** -(e.astype(float) + 1.0)
     r = np.sqrt(-2.0 * np.log(u))
