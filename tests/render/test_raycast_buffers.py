@@ -5,6 +5,8 @@ caller's frame buffers.
   the owner's count untouched), for arrays and (named) tuples of them;
 * a frame drawn after frames of other poses (and another lighting) is the same as drawn first:
   nothing of one frame's work arrays leaks into the next;
+* every pixel of the frame is written, radiance and depth, whatever the buffers held (a span
+  boundary on a pixel centre, as where a corridor wall meets the floor, included);
 * ``draw_level(out=)`` writes into the caller's buffers the same frame as new arrays, and refuses
   buffers of another shape, type or layout (row-major among them) with a ``ValueError``;
 * :func:`frame_buffers` are column-major and start on a page;
@@ -74,6 +76,20 @@ def test_a_frame_does_not_depend_on_the_frames_before_it(plant):
     fresh = CameraRenderer(m, camera, mount=m.camera_mount, backend="raycast")
     alone = fresh.engine.draw(camera, fresh.camera_pose(poses[0]), None)
     assert np.array_equal(first[0], alone[0]) and np.array_equal(first[1], alone[1])
+
+
+@pytest.mark.parametrize("map_name, lens", [("corridor", 16.0), ("corridor", 8.0), ("plant_floor", 16.0)])
+def test_every_pixel_of_the_frame_is_written(map_name, lens):
+    m = load_map(map_name)
+    camera = Camera.thesis(lens)
+    r = CameraRenderer(m, camera, backend="raycast")
+    out = frame_buffers(camera.width, camera.height)
+    for k, p in enumerate(route_poses(m, 20, lookahead_target=False)):
+        out[0][:] = np.nan
+        out[1][:] = np.nan
+        r.engine.draw(camera, r.camera_pose(p), None, out)
+        assert not np.isnan(out[0]).any(), f"pose {k}: radiance not written at {np.argwhere(np.isnan(out[0]))[:3]}"
+        assert not np.isnan(out[1]).any(), f"pose {k}: depth not written at {np.argwhere(np.isnan(out[1]))[:3]}"
 
 
 def test_draw_level_into_the_callers_buffers(plant):

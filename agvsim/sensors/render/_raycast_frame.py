@@ -53,7 +53,10 @@ def _zero_outside(acc, lo, hi):
 
 
 @inline
-def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight, acc, depth, write_depth):
+def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight, acc):
+    """Add ``weight`` x the radiance of a flat span (the floor, ``sid < 0``, or the top of solid
+    ``sid`` at height ``hh`` m) over rows ``y0 .. y1`` of the (sub-)column ``x0 .. x1`` to ``acc``,
+    each pixel sampled at the middle of the part the span covers."""
     h_img = view.height
     fy = view.fy
     cy = view.cy
@@ -112,14 +115,34 @@ def _shade_flat(view, tex, light, floor, solids, sid, hh, y0, y1, x0, x1, weight
             if view.level < 0.0:
                 irr *= raster_lookup(light, light.zone, px, py)
         acc[i] += gain * cov * alb * irr
-        if write_depth and ya <= i < yb:
-            zi = k / (i - cy) if i - cy > k / FAR else 0.0
-            depth[i] = zi
 
 
 @inline
-def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth, floor_img,
-                drawn, j, floor_depth, skip_lo, skip_hi):
+def _flat_depth(view, kind, sid, hh, y0, y1, depth, floor_depth, skip_lo, skip_hi):
+    """The depth at the pixel centres ``y0 <= i < y1`` of a span that is not a face: the floor's
+    row depth (``floor_depth``), a solid's top at height ``hh`` m (``fy (cam_z - hh) / (i - cy)``),
+    or 0 (background). The same rule as the faces' (``ceil(y0) <= i <= ceil(y1) - 1``, in
+    integers): the spans of a column, which share their ends, give every centre exactly once.
+    Of the floor, rows ``skip_lo .. skip_hi`` are left (the caller took them from the floor pass)."""
+    lo = max(int(math.ceil(y0)), 0)
+    hi = min(int(math.ceil(y1)) - 1, view.height - 1)
+    if kind == _FLAT and sid < 0:
+        for i in range(np.uint64(lo), np.uint64(max(min(hi, skip_lo - 1) + 1, lo))):
+            depth[i] = floor_depth[i]
+        for i in range(np.uint64(max(lo, skip_hi + 1)), np.uint64(max(hi + 1, lo, skip_hi + 1))):
+            depth[i] = floor_depth[i]
+    elif kind == _FLAT:
+        k = view.fy * (view.cam_z - hh)
+        for i in range(lo, hi + 1):
+            depth[i] = k / (i - view.cy) if i - view.cy > k / FAR else 0.0
+    else:
+        for i in range(np.uint64(lo), np.uint64(max(hi + 1, lo))):
+            depth[i] = 0.0
+
+
+@inline
+def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, floor_img, drawn, j, skip_lo,
+                skip_hi):
     """A span of the floor in column ``j``: the pixels it covers whole and the floor pass drew
     (``drawn[j]``, the pass's ``floor_img[:, j]``), the others from :func:`_shade_flat`; rows
     ``skip_lo .. skip_hi`` (whole, drawn) not at all (the caller takes them from the floor pass)."""
@@ -132,14 +155,11 @@ def _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, de
             continue
         if f_lo <= i <= f_hi and drawn[j, i]:
             acc[i] += weight * floor_img[i, j]
-            if write_depth:
-                depth[i] = floor_depth[i]
         else:  # a pixel the span covers in part (sampled where it does), or one the pass did not draw
             ya = max(i - 0.5, y0)
             yb = min(i + 0.5, y1)
             if yb > ya:
-                _shade_flat(view, tex, light, floor, solids, -1, 0.0, ya, yb, x0, x1, weight, acc, depth,
-                            write_depth)
+                _shade_flat(view, tex, light, floor, solids, -1, 0.0, ya, yb, x0, x1, weight, acc)
 
 
 @inline
@@ -162,7 +182,8 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
             (column ``j`` read), which rows of each column it drew ``(W, H)`` uint8, the floor's
             depth per row ``(H,)``.
         skip_lo, skip_hi: rows a floor span covers whole and the pass drew that are left out
-            (neither ``acc`` nor ``depth`` written there; none if ``skip_hi < skip_lo``).
+            (neither ``acc`` nor ``depth`` written there; none if ``skip_hi < skip_lo``). Every other
+            pixel centre's depth is written exactly once (when ``write_depth``).
     """
     h_img = view.height
     for k in range(ns):
@@ -175,12 +196,12 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
         if kind == _FACE:
             shade_face(view, faces, decals, tex, light, sid, sp_val[k], y0, y1, x0, x1, weight, acc, depth,
                        write_depth, work)
-        elif kind == _FLAT and sid < 0:
-            _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, depth, write_depth,
-                        floor_img, drawn, j, floor_depth, skip_lo, skip_hi)
+            continue  # (the face writes its depth)
+        if kind == _FLAT and sid < 0:
+            _floor_span(view, tex, light, floor, solids, y0, y1, x0, x1, weight, acc, floor_img, drawn, j, skip_lo,
+                        skip_hi)
         elif kind == _FLAT:
-            _shade_flat(view, tex, light, floor, solids, sid, sp_val[k], y0, y1, x0, x1, weight, acc, depth,
-                        write_depth)
+            _shade_flat(view, tex, light, floor, solids, sid, sp_val[k], y0, y1, x0, x1, weight, acc)
         else:
             i_lo = max(int(math.floor(y0 + 0.5)), 0)
             i_hi = min(int(math.floor(y1 + 0.5)), h_img - 1)
@@ -196,13 +217,10 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
                 yb = min(y1, i + 0.5)
                 if yb > ya:
                     acc[i] += bg * (yb - ya)
-                    if write_depth and ya <= i < yb:
-                        depth[i] = 0.0
             for i in range(np.uint64(f_lo), np.uint64(max(f_hi + 1, f_lo))):
                 acc[i] += bg
-            if write_depth:
-                for i in range(np.uint64(f_lo), np.uint64(max(f_hi + 1, f_lo))):
-                    depth[i] = 0.0
+        if write_depth:  # the pixel centres in the span, y0 <= i < y1, as the faces take theirs
+            _flat_depth(view, kind, sid, sp_val[k], y0, y1, depth, floor_depth, skip_lo, skip_hi)
 
 
 @jit
@@ -221,6 +239,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     The column pass shades each column into contiguous scratch and stores it whole where the
     frame holds it contiguously (a row-major frame would take each column a pixel per row,
     one cache line each: a fifth of the frame's time, storing blocks of columns row by row).
+    Accumulating in the frame itself instead was slower (a read-modify-write per sample in a
+    1 MB array, where the scratch stays in the first level of the cache).
     The floor pass draws into ``work.floor_img`` (rows padded past a power-of-two stride: the
     columns read it down a column, and rows 2 kB apart would share a few sets of the cache);
     where a column's largest floor span covers the rows whole and the pass drew them, the
@@ -291,16 +311,17 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     mid = work.mid
     mval = work.mval
     acc = work.acc
-    dcol = work.dcol
     for i in range(h):
         acc[i] = 0.0
-        dcol[i] = 0.0
     sub = max(view.subcolumns, 1)
-    # each column is shaded into ``acc`` and ``dcol`` and stored whole, contiguous in the
-    # column-major frame. Of the floor, a column's largest span leaves the rows it covers whole
-    # where the floor pass drew them (s_lo .. s_hi): there the pass's radiance is taken as it
-    # is (0 + 1 x it, the column's sum) and the depth is the floor's row's
+    # each column's radiance is shaded into ``acc`` (in the first level of the cache) and stored
+    # whole, contiguous in the column-major frame; its depth is written there directly. Of the
+    # floor, a column's largest span leaves the rows it covers whole where the floor pass drew
+    # them (s_lo .. s_hi): there the pass's radiance is taken as it is (0 + 1 x it, the column's
+    # sum) and the depth is the floor's row's
     for j in range(w):
+        uj = np.uint64(j)
+        dcol = depth_t[j]
         oa = j * MAX_SPANS
         ob = oa + MAX_SPANS
         n_a = e_n[j]
@@ -337,6 +358,8 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                 s_lo = h
                 s_hi = -1
             _zero_outside(acc, s_lo, s_hi)
+            for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # the rows kept from the floor pass
+                dcol[i] = floor_depth[i]
             shade_column(view, faces, decals, tex, light, floor, solids, n_b, my0, my1, mval, e_kind, e_id, ob,
                          j - 0.5, j + 0.5, 1.0, acc, dcol, True, work, floor_img, drawn_t, j, floor_depth,
                          s_lo, s_hi)
@@ -351,15 +374,11 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                 shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
                              x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, work, floor_img, drawn_t, j,
                              floor_depth, h, -1)
-        # the column, contiguous in the frame: the shaded rows, and the rows kept from the floor
-        # pass (its radiance as it is, the floor's depth)
-        uj = np.uint64(j)
+        # the column's radiance, contiguous in the frame: the shaded rows and the rows kept from
+        # the floor pass (its radiance as it is)
         for i in range(np.uint64(s_lo)):
             radiance_t[uj, i] = acc[i]
-            depth_t[uj, i] = dcol[i]
         for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):
             radiance_t[uj, i] = floor_img[i, uj]
-            depth_t[uj, i] = floor_depth[i]
         for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
             radiance_t[uj, i] = acc[i]
-            depth_t[uj, i] = dcol[i]

@@ -281,7 +281,7 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
             z = hit_in[best]
             y_hi = cy + fy * (hc - h) / z
             y_lo = cy + fy * (hc - max(h_prev, 0.0)) / z
-            y1 = min(y_lo, top)
+            y1 = _meet(y_lo, top)
             if face >= 0 and y_hi < y1:
                 sp_y0[so + ns] = max(y_hi, -0.5)
                 sp_y1[so + ns] = y1
@@ -293,7 +293,7 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
         if 0.0 <= h < hc and top > -0.5:
             y_near = cy + fy * (hc - h) / z_a
             y_far = cy + fy * (hc - h) / z_b if z_b < FAR else cy + fy * (hc - h) / FAR
-            y1 = min(y_near, top)
+            y1 = _meet(y_near, top)
             if y_far < y1:
                 sp_y0[so + ns] = max(y_far, -0.5)
                 sp_y1[so + ns] = y1
@@ -314,6 +314,19 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
         sp_val[so + ns] = 0.0
         ns += 1
     return ns
+
+
+#: px: span ends closer than this are the same edge (:func:`_meet`)
+_SAME_EDGE = 1e-7
+
+
+@inline
+def _meet(y, top):
+    """A span's lower end ``y`` (px) against ``top``, the upper end of the span below it:
+    ``min(y, top)``, and ``top`` itself when they differ by rounding only (the two are the same
+    edge, computed twice; spans must share their ends exactly, or a pixel centre between the
+    two would belong to neither)."""
+    return top if y >= top - _SAME_EDGE else y
 
 
 @jit

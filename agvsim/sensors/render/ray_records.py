@@ -232,7 +232,6 @@ class FrameScratch(NamedTuple):
     mid: np.ndarray  # (S,) int64
     mval: np.ndarray  # (S,) float64
     acc: np.ndarray  # (H,) float64: a column's radiance
-    dcol: np.ndarray  # (H,) float32, m: a column's depth
     shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
     texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
 
@@ -249,5 +248,5 @@ class FrameScratch(NamedTuple):
                    np.zeros((height, width + FLOOR_PAD), np.float32), np.zeros(height, np.float32),
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
-                   np.zeros(height), np.zeros(height, np.float32), np.zeros(shade[0], f8),
+                   np.zeros(height), np.zeros(shade[0], f8),
                    np.zeros(shade[1], np.float32))

@@ -104,7 +104,7 @@ class RaycastBackend:
 
     def _scratch(self, width: int, height: int) -> FrameScratch:
         """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""
-        if self._work is None or self._work.acc.shape[0] != height or self._work.e_n.shape[0] != width + 1:
+        if self._work is None or self._work.floor_depth.shape[0] != height or self._work.e_n.shape[0] != width + 1:
             from agvsim.sensors.render._raycast_face import scratch_size
             from agvsim.sensors.render._raycast_kernels import MAX_HITS, MAX_SPANS
 

@@ -32,8 +32,9 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.geometry import TargetPose
-from agvsim.sensors.render import _truth_kernels as tk
 from agvsim.sensors.render._truth_kernels import COLUMNS as TRUTH_COLUMNS
+from agvsim.sensors.render._truth_kernels import (TruthParams, blank_table, frame_table, image_geometry,
+                                                  occlusion_verdicts, target_poses)
 from agvsim.sensors.render.mount import CameraPose, level_rotation
 
 OCCLUSION_GRID = (7, 5)  # sample points across x down the printed face
@@ -292,24 +293,24 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     level = level_rotation(cam_pose.heading)
     rot = cam_pose.rotation  # no jitter: the level rotation's very bits
     jittered = rot.tobytes() != level.tobytes()
-    params = tk.TruthParams(float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy),
+    params = TruthParams(float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy),
                             int(camera.width), int(camera.height), int(supersample), NEAR, MIN_BAR_PX, MIN_ROWS,
                             MAX_ALPHA)
     position = np.asarray(cam_pose.position, dtype=np.float64)
     has_depth = depth is not None
     depth = depth if has_depth else _NO_DEPTH
-    table = tk.blank_table(n)
+    table = blank_table(n)
     act = np.empty((n, 3, 3))
     if n and not (distorted and camera.dist):
-        tk.frame_table(g.frame, position, rot, level, jittered, g._outer, g._image, g._grid, params, depth, has_depth,
+        frame_table(g.frame, position, rot, level, jittered, g._outer, g._image, g._grid, params, depth, has_depth,
                        act, table, np.empty((1, IMAGE.stop, 2)))
     elif n:  # the image geometry through the lens distortion (NumPy), the rest compiled
-        tk.target_poses(g.frame, position, rot, level, jittered, g._outer, NEAR, act, table)
+        target_poses(g.frame, position, rot, level, jittered, g._outer, NEAR, act, table)
         f = (table[:, _COL["in_front"]] != 0.0).nonzero()[0]
         if len(f):
             px = camera.project(g._image[f] @ act[f])  # (m, 16, 2) px
-            tk.image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table)
-        tk.occlusion_verdicts(g._grid, act, params, depth, has_depth, table)
+            image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table)
+        occlusion_verdicts(g._grid, act, params, depth, has_depth, table)
     kept = table[:, 0] > 1e-9  # a centre at the lens has no pose
     if kept.all():
         ids, polarities = tuple(g._ids), tuple(g._polarities)
