@@ -4,23 +4,39 @@ Each command module exposes ``register(subparsers)``, which adds its parser
 and sets ``func`` (called with the parsed namespace, returns an exit code).
 Registration only builds argparse parsers; heavy imports happen inside the
 command functions, so ``agvsim --help`` stays fast and opens no GL context.
+
+A user's mistake (a bad flag value, a file that cannot be read or written, an
+unknown name) is one line on stderr naming the flag or file, the value and what
+was expected, and exit status 2; ``--debug`` adds the traceback.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+import traceback
 
 #: Subcommand modules under agvsim.commands, in the order --help lists them.
 COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "reproduce", "render", "bench", "drift")
 
+#: The exit status of a user's mistake (argparse's own).
+USAGE_ERROR = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (no usage block): ``agvsim CMD: error: MESSAGE``."""
+
+    def error(self, message: str):  # noqa: D102 (argparse's hook)
+        self.exit(USAGE_ERROR, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="agvsim",
         description="Simulate vision-guided AGV navigation and localize two-bar wall targets.",
     )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
     for name in COMMAND_MODULES:
         try:
             module = importlib.import_module(f"agvsim.commands.{name}")
@@ -34,12 +50,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv  # (also after the command's name)
+    args = parser.parse_args([a for a in argv if a != "--debug"])
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"agvsim {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except (ValueError, OSError) as exc:  # bad values, files that cannot be read or written
+        if debug:
+            traceback.print_exc()
+        print(f"agvsim {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return USAGE_ERROR
+
+
+def _one_line(exc: BaseException) -> str:
+    """The error's message on one line (an ``OSError`` with its file name and reason)."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
 
 
 if __name__ == "__main__":  # pragma: no cover

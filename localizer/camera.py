@@ -142,6 +142,10 @@ class Camera:
                 raise ValueError(f"{path}: field 'camera_matrix' must be 3x3, got shape {k.shape}")
             dist = matrix("distortion_coefficients", False)
             width, height = integer("image_width"), integer("image_height")
+        except (cv2.error, SystemError) as exc:  # a file OpenCV parses but whose top level is no map of fields
+            raise ValueError(f"{path}: not an OpenCV calibration file (expected a map of the fields camera_matrix, "
+                             f"image_width, image_height and optionally distortion_coefficients; OpenCV could not "
+                             f"read its fields: {type(exc).__name__})") from None
         finally:
             fs.release()
         try:

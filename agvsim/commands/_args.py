@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["MOUNT_PRESETS", "add_mount_flag", "parse_mount"]
+__all__ = ["MOUNT_PRESETS", "add_mount_flag", "check_pose_on_map", "check_route", "image_writer", "number",
+           "parse_mount", "write_image"]
 
 #: Named mounts for ``--camera-mount`` besides ``map`` and explicit fields.
 MOUNT_PRESETS: tuple[str, ...] = ("map", "forward", "left", "right")
@@ -60,3 +61,69 @@ def add_backend_flag(parser) -> None:
     parser.add_argument("--backend", default=DEFAULT_BACKEND, choices=tuple(BACKENDS),
                         help="renderer of rendered frames: " + "; ".join(f"{k}: {v}" for k, v in BACKENDS.items())
                         + " (default: %(default)s)")
+
+
+def number(low: float | None = None, high: float | None = None, *, low_open: bool = False, integer: bool = False,
+           unit: str = ""):
+    """An argparse ``type=`` for a number within bounds (checked by
+    :func:`localizer.numeric.check_number`): a bad value is one line, ``argument --lens: expected a
+    finite number > 0 (mm), got '0'``."""
+    from localizer.numeric import check_number
+
+    def parse(text: str):
+        try:
+            value = float(text)
+        except ValueError:
+            value = text
+        try:
+            return check_number("value", value, low=low, high=high, low_open=low_open, integer=integer, unit=unit)
+        except ValueError as exc:
+            expected = str(exc).split(" must be ", 1)[1].rsplit(", got ", 1)[0]
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+
+    parse.__name__ = "whole number" if integer else "number"  # (argparse names the type in some messages)
+    return parse
+
+
+def check_route(world_map, name: str, flag: str = "--route") -> str:
+    """``name`` if ``world_map`` has that route, else one ``ValueError`` naming the flag, the map's
+    routes and the nearest."""
+    from localizer.numeric import check_choice
+
+    return check_choice(f"{flag} (map {world_map.name!r})", name, world_map.routes)
+
+
+def check_pose_on_map(world_map, pose, flag: str = "--pose") -> tuple[float, float, float]:
+    """``(x, y, theta)`` if ``(x, y)`` lies inside ``world_map``'s bounds, else one ``ValueError``."""
+    x, y, theta = (float(v) for v in pose)
+    xmin, ymin, xmax, ymax = world_map.bounds
+    if not (xmin <= x <= xmax and ymin <= y <= ymax):
+        raise ValueError(f"{flag} {x:g} {y:g} {theta:g}: the point ({x:g}, {y:g}) m is outside map "
+                         f"{world_map.name!r}; expected x in {xmin:g}..{xmax:g} m and y in {ymin:g}..{ymax:g} m")
+    return x, y, theta
+
+
+def image_writer(path, flag: str):
+    """``path`` (a :class:`pathlib.Path`) ready for ``cv2.imwrite``: its folder created, and a
+    ``ValueError`` naming the flag unless OpenCV has a writer for its extension."""
+    from pathlib import Path
+
+    import cv2
+
+    path = Path(path)
+    if not cv2.haveImageWriter(str(path)):
+        raise ValueError(f"{flag} {str(path)!r}: no image format for {path.suffix or 'a name without an extension'}; "
+                         "expected a .png, .jpg, .bmp or .tif name")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def write_image(path, image, flag: str):
+    """Write ``image`` to ``path`` (checked by :func:`image_writer`); an ``OSError`` if OpenCV
+    reports a failure (nothing is said to be written that was not)."""
+    import cv2
+
+    path = image_writer(path, flag)
+    if not cv2.imwrite(str(path), image):
+        raise OSError(f"{flag} {str(path)!r}: OpenCV could not write the image")
+    return path

@@ -17,8 +17,7 @@ import math
 import time
 from pathlib import Path
 
-from agvsim.commands._args import add_backend_flag, add_mount_flag
-from localizer.numeric import check_number
+from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
@@ -33,8 +32,8 @@ def register(sub) -> None:
     p.add_argument("--route", default="default", help="route name (default: %(default)s)")
     p.add_argument("--odometry", default="typical", choices=PRESETS,
                    help="odometry error preset (default: %(default)s)")
-    p.add_argument("--laps", type=float, default=1.0, help="passes of a loop route (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--laps", type=number(0.0, low_open=True), default=1.0, help="passes of a loop route (default: %(default)s)")
+    p.add_argument("--seed", type=number(0, integer=True), default=0, help="random seed (default: %(default)s)")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-vision", action="store_true",
@@ -43,7 +42,7 @@ def register(sub) -> None:
     p.add_argument("--observations", default="rendered", choices=SOURCES,
                    help="what the camera reports (default: %(default)s, the renderer + localizer)")
     add_mount_flag(p)
-    p.add_argument("--frames", type=int, default=8,
+    p.add_argument("--frames", type=number(0, integer=True), default=8,
                    help="camera frames in the strip along the route, 0 for none (default: %(default)s)")
     add_json_flag(p)
     p.set_defaults(func=run)
@@ -94,8 +93,7 @@ def run(args) -> int:
     from agvsim.world import load_map
 
     world_map = load_map(args.map)
-    check_number("--laps", args.laps, low=0.0, low_open=True)
-    path = RoutePath.from_route(world_map, args.route)
+    path = RoutePath.from_route(world_map, check_route(world_map, args.route))
     total = path.length * (args.laps if path.loop else 1.0)
     config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))
     rng = np.random.default_rng(args.seed)

@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from agvsim.commands._args import add_backend_flag, add_mount_flag
+from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from localizer.numeric import check_number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
@@ -30,23 +30,24 @@ def register(sub) -> None:
                        description=__doc__.split("\n\n")[0])
     p.add_argument("--map", default=DEFAULT_MAP, help="map name or YAML path (default: %(default)s)")
     p.add_argument("--route", default="default", help="route name (default: %(default)s)")
-    p.add_argument("--distance", type=float, default=1000.0, help="metres of route per seed (default: %(default)s)")
-    p.add_argument("--seeds", type=int, default=20, help="number of seeds 0..N-1 (default: %(default)s)")
-    p.add_argument("--first-seed", type=int, default=0, help="first seed (default: %(default)s)")
+    p.add_argument("--distance", type=number(0.0, low_open=True, unit="m"), default=1000.0, help="metres of route per seed (default: %(default)s)")
+    p.add_argument("--seeds", type=number(1, integer=True), default=20, help="number of seeds 0..N-1 (default: %(default)s)")
+    p.add_argument("--first-seed", type=number(0, integer=True), default=0, help="first seed (default: %(default)s)")
     p.add_argument("--odometry", default="typical", choices=PRESETS,
                    help="odometry error preset (default: %(default)s)")
-    p.add_argument("--camera-rate", type=float, default=4.0, help="camera frames per second (default: %(default)s)")
-    p.add_argument("--latency", type=float, default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
+    p.add_argument("--camera-rate", type=number(0.0, low_open=True, unit="Hz"), default=4.0, help="camera frames per second (default: %(default)s)")
+    p.add_argument("--latency", type=number(0.0, unit="s"), default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
     p.add_argument("--no-vision", action="store_true", help="dead reckoning only (the contrast run)")
     add_backend_flag(p)
     p.add_argument("--observations", default="rendered", choices=SOURCES,
-                   help="observation source: rendered frames + localizer (issue 4 renderer), synthetic "
+                   help="observation source: rendered frames + localizer, synthetic "
                         "frames + localizer, or geometric truth + noise (default: %(default)s)")
     p.add_argument("--drop-targets", type=int, default=0, metavar="N",
                    help="remove every N-th target of the map (3: one target in three; default: none)")
-    p.add_argument("--false-rate", type=float, default=0.0,
+    p.add_argument("--false-rate", type=number(0.0), default=0.0,
                    help="geometric source only: mean false detections per frame (default: %(default)s)")
-    p.add_argument("--workers", type=int, default=0, help="parallel workers (default: the local cores)")
+    p.add_argument("--workers", type=number(1, integer=True), default=None,
+                   help="parallel worker processes, at least 1 (default: the local cores)")
     p.add_argument("--out", type=Path, default=Path("out/drift"), help="output folder (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -158,10 +159,11 @@ def run(args) -> int:
     if args.false_rate and args.observations != "geometric":
         raise ValueError("--false-rate applies to --observations geometric only")
     world_map = load_map(args.map)
+    check_route(world_map, args.route)
     if args.drop_targets:
         world_map = world_map.without_targets(args.drop_targets)
     if not args.no_vision and args.observations == "rendered" and not RenderedSource.available():
-        raise ValueError("the camera renderer (agvsim.sensors.render.CameraRenderer, issue 4) is not available; "
+        raise ValueError("the camera renderer (agvsim.sensors.render.CameraRenderer) is not available; "
                          "use --observations synthetic (synthetic frames + localizer) or geometric")
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     workers = args.workers or (os.cpu_count() or 1)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json, log
 from localizer.params import METHODS
 
@@ -11,15 +12,17 @@ def register(sub) -> None:
     p = sub.add_parser("localize", help="localize two-bar targets in image files",
                        description="Find the thesis's two-bar targets in image files and print the "
                                    "distance d, orientation alpha and bearing beta of each.")
-    p.add_argument("images", nargs="+", metavar="IMAGE", help="image files (PNG, JPEG, ...)")
+    p.add_argument("images", nargs="+", metavar="IMAGE",
+                   help="image files (PNG, JPEG, ...); one that cannot be read is reported and the others "
+                        "localized (exit status 2)")
     cam = p.add_mutually_exclusive_group()
-    cam.add_argument("--lens", type=float, default=16.0, metavar="MM",
+    cam.add_argument("--lens", type=number(0.0, low_open=True, unit="mm"), default=16.0, metavar="MM",
                      help="thesis camera with this focal length in mm (default 16)")
     cam.add_argument("--camera", metavar="CALIB.yaml", help="OpenCV calibration file (camera_matrix, "
                      "distortion_coefficients, image_width, image_height)")
     p.add_argument("--method", choices=METHODS, default="exact",
                    help="thesis: the thesis's pipeline; exact: subpixel edges + exact pose (default)")
-    p.add_argument("--bar-width", type=float, default=0.075, metavar="M",
+    p.add_argument("--bar-width", type=number(0.0, low_open=True, unit="m"), default=0.075, metavar="M",
                    help="bar width b in metres (thesis proportions H=2b, s=b/2; default 0.075)")
     p.add_argument("--annotate", metavar="OUT.png",
                    help="write the image with edges and numbers marked (OUT_<n>.png for several images)")
@@ -36,29 +39,64 @@ def _annotate_path(out: str, index: int, count: int) -> str:
     return str(path.with_name(f"{path.stem}_{index}{path.suffix or '.png'}"))
 
 
+def read_grey(name: str):
+    """``name`` as an 8-bit grey image, or one ``ValueError`` saying why not: no such file, a
+    folder, or a file OpenCV cannot decode (checked before OpenCV is asked, which would only warn)."""
+    from pathlib import Path
+
+    import cv2
+    import numpy as np
+
+    path = Path(name)
+    if path.is_dir():
+        raise ValueError(f"{name}: a folder, expected an image file")
+    if not path.exists():
+        raise ValueError(f"{name}: no such file")
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except OSError as exc:
+        raise ValueError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
+    if img is None:
+        raise ValueError(f"{name}: not an image OpenCV can read (expected PNG, JPEG, BMP, TIFF, ...)")
+    return img
+
+
 def run(args: argparse.Namespace) -> int:
     import math
     import statistics
     import time
 
-    import cv2
-
+    from agvsim.commands._args import image_writer, write_image
     from localizer import Camera, TargetSpec, annotate, detect_targets
 
     target = TargetSpec.from_bar_width(args.bar_width)
-    base = Camera.from_opencv_yaml(args.camera) if args.camera else Camera.thesis(args.lens)
+    if args.camera:
+        try:
+            base = Camera.from_opencv_yaml(args.camera)
+        except (ValueError, FileNotFoundError) as exc:
+            raise ValueError(f"--camera {exc}") from None
+    else:
+        base = Camera.thesis(args.lens)
+    if args.annotate:  # a name OpenCV cannot write fails before any work
+        image_writer(_annotate_path(args.annotate, 0, len(args.images)), "--annotate")
     results = []
+    failed = 0
     for i, name in enumerate(args.images):
-        img = cv2.imread(name, cv2.IMREAD_GRAYSCALE)
-        if img is None:
-            raise FileNotFoundError(f"cannot read image {name!r}")
-        camera = base
-        if img.shape != base.shape:
-            if args.camera:
-                raise ValueError(f"{name}: image is {img.shape[1]}x{img.shape[0]} but the calibration is "
-                                 f"for {base.width}x{base.height}")
-            camera = base.scaled(img.shape[1], img.shape[0])
-            log(f"{name}: {img.shape[1]}x{img.shape[0]} image, thesis sensor scaled to it")
+        try:
+            img = read_grey(name)
+            camera = base
+            if img.shape != base.shape:
+                if args.camera:
+                    raise ValueError(f"{name}: image is {img.shape[1]}x{img.shape[0]} but the calibration is "
+                                     f"for {base.width}x{base.height}")
+                camera = base.scaled(img.shape[1], img.shape[0])
+                log(f"{name}: {img.shape[1]}x{img.shape[0]} image, thesis sensor scaled to it")
+        except ValueError as exc:  # this image only: the others are still localized
+            failed += 1
+            log(f"agvsim localize: error: {exc}")
+            results.append({"image": name, "error": str(exc), "targets": []})
+            continue
         obs = detect_targets(img, camera, target, method=args.method)
         times = []
         for _ in range(5):
@@ -68,18 +106,21 @@ def run(args: argparse.Namespace) -> int:
         ms = 1000.0 * statistics.median(times)
         results.append({"image": name, "ms_per_frame": ms, "targets": [o.to_dict() for o in obs]})
         if args.annotate:
-            out = _annotate_path(args.annotate, i, len(args.images))
-            cv2.imwrite(out, annotate(img, obs))
+            out = write_image(_annotate_path(args.annotate, i, len(args.images)), annotate(img, obs), "--annotate")
             log(f"wrote {out}")
+    status = 2 if failed else 0  # (a user's mistake, as a bad flag or map)
     if args.json:
-        emit_json({"method": args.method, "camera": {"fx": base.fx, "fy": base.fy, "cx": base.cx, "cy": base.cy,
-                                                     "width": base.width, "height": base.height,
-                                                     "dist": list(base.dist)},
+        emit_json({"ok": not failed, "method": args.method,
+                   "camera": {"fx": base.fx, "fy": base.fy, "cx": base.cx, "cy": base.cy,
+                              "width": base.width, "height": base.height, "dist": list(base.dist)},
                    "results": results})
-        return 0
+        return status
     print(f"{'image':<28} {'#':>2} {'d (m)':>8} {'alpha':>7} {'beta':>7} {'sd d':>7} {'sd a':>6} "
           f"{'polarity':>9} {'ms':>6}")
     for r in results:
+        if "error" in r:
+            print(f"{r['image'][-28:]:<28} {'-':>2} error: {r['error']}")
+            continue
         if not r["targets"]:
             print(f"{r['image'][-28:]:<28} {'-':>2} {'no target':>8} {'':>7} {'':>7} {'':>7} {'':>6} {'':>9} "
                   f"{r['ms_per_frame']:6.2f}")
@@ -87,4 +128,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"{r['image'][-28:]:<28} {k + 1:>2} {t['distance_m']:8.3f} {t['alpha_deg']:7.2f} "
                   f"{t['beta_deg']:7.2f} {t['sigma']['distance_m']:7.3f} "
                   f"{math.degrees(t['sigma']['alpha_rad']):6.2f} {t['polarity']:>9} {r['ms_per_frame']:6.2f}")
-    return 0
+    if failed:
+        log(f"agvsim localize: {failed} of {len(args.images)} images could not be read")
+    return status

@@ -18,6 +18,7 @@ import math
 import sys
 from typing import Any
 
+from agvsim.commands._args import check_route, number
 from agvsim.commands._output import add_json_flag, emit_json
 
 EXIT_BAD_MAP = 2
@@ -48,9 +49,9 @@ def register(sub) -> None:
                     "in view, then by the share of the route with one; the map's recommended mount beside.")
     p_mounts.add_argument("map", metavar="PATH_OR_NAME", help="shipped map name or path to a .yaml file")
     p_mounts.add_argument("--route", default="default", help="route name (default: %(default)s)")
-    p_mounts.add_argument("--step", type=float, default=0.25, metavar="M",
+    p_mounts.add_argument("--step", type=number(0.0, low_open=True, unit="m"), default=0.25, metavar="M",
                           help="sample spacing along the route, m (default: %(default)s)")
-    p_mounts.add_argument("--top", type=int, default=8, help="mounts listed (default: %(default)s)")
+    p_mounts.add_argument("--top", type=number(1, integer=True), default=8, help="mounts listed (default: %(default)s)")
     add_json_flag(p_mounts)
     p_mounts.set_defaults(func=run_mounts)
 
@@ -173,6 +174,7 @@ def run_mounts(args: argparse.Namespace) -> int:
     except (MapError, FileNotFoundError) as exc:
         print(f"agvsim map mounts: error: {exc}", file=sys.stderr)
         return EXIT_BAD_MAP
+    check_route(world, args.route)
     rec = world.camera_mount
     yaws = [math.radians(d) for d in range(-90, 91, 10)]
     ranked = scan_mounts(world, candidate_mounts(yaws, (-0.3, 0.0, 0.3), rec.forward, rec.height),

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from agvsim.commands._args import add_backend_flag, parse_mount
+from agvsim.commands._args import add_backend_flag, check_pose_on_map, image_writer, number, parse_mount, write_image
 from agvsim.commands._output import add_json_flag, clean_json, emit_json, log
 
 
@@ -20,14 +20,14 @@ def register(sub) -> None:
                                    "y north, theta CCW from +x; metres and radians) and optionally write "
                                    "the ground truth of every target as JSON.")
     p.add_argument("--map", default="plant_floor", help="map name or path (default: %(default)s)")
-    p.add_argument("--pose", nargs=3, type=float, required=True, metavar=("X", "Y", "THETA"),
+    p.add_argument("--pose", nargs=3, type=number(), required=True, metavar=("X", "Y", "THETA"),
                    help="vehicle pose: x (m), y (m), theta (rad)")
-    p.add_argument("--lens", type=float, default=16.0, metavar="MM",
+    p.add_argument("--lens", type=number(0.0, low_open=True, unit="mm"), default=16.0, metavar="MM",
                    help="thesis camera with this focal length in mm (16 or 50; default 16)")
     p.add_argument("--lighting", type=_lighting, default=None, metavar="LEVEL",
                    help="override the map's lighting zones: dim, normal, bright, or a relative level "
                         "(default: the map's zones)")
-    p.add_argument("--seed", type=int, default=0, help="sensor noise / jitter seed (default 0)")
+    p.add_argument("--seed", type=number(0, integer=True), default=0, help="sensor noise / jitter seed (default 0)")
     p.add_argument("--out", required=True, metavar="FRAME.png", help="where to write the frame")
     p.add_argument("--truth", metavar="TRUTH.json",
                    help="write the camera intrinsics and every target's truth (id, visible, distance, alpha, "
@@ -36,13 +36,13 @@ def register(sub) -> None:
                    help="where the camera sits: forward, left, right (looking out of that side), map (the "
                         "map's recommended mount) or forward=F,lateral=L,height=H,yaw=Y in m and rad "
                         "(default forward)")
-    p.add_argument("--camera-height", type=float, default=1.2, metavar="M",
+    p.add_argument("--camera-height", type=number(0.0, low_open=True, unit="m"), default=1.2, metavar="M",
                    help="lens height above the floor for forward/left/right, m (default 1.2)")
-    p.add_argument("--exposure", type=float, default=1.0, help="relative exposure (default 1)")
-    p.add_argument("--defocus", type=float, default=0.0, metavar="PX", help="optical blur sigma, px (default 0)")
-    p.add_argument("--focus", type=float, default=None, metavar="M",
+    p.add_argument("--exposure", type=number(0.0, low_open=True), default=1.0, help="relative exposure (default 1)")
+    p.add_argument("--defocus", type=number(0.0, unit="px"), default=0.0, metavar="PX", help="optical blur sigma, px (default 0)")
+    p.add_argument("--focus", type=number(0.0, low_open=True, unit="m"), default=None, metavar="M",
                    help="focus distance (m): thin-lens defocus grows away from it (default: all in focus)")
-    p.add_argument("--velocity", type=float, nargs=2, default=(0.0, 0.0), metavar=("V", "OMEGA"),
+    p.add_argument("--velocity", type=number(), nargs=2, default=(0.0, 0.0), metavar=("V", "OMEGA"),
                    help="vehicle speed (m/s) and yaw rate (rad/s) during the exposure, for motion blur")
     p.add_argument("--no-noise", action="store_true", help="no sensor noise")
     p.add_argument("--rgb", action="store_true", help="write a 3-channel image instead of grey")
@@ -55,7 +55,6 @@ def render_frame(args: argparse.Namespace) -> dict:
     import json
     from pathlib import Path
 
-    import cv2
     import numpy as np
 
     from localizer import Camera
@@ -63,6 +62,8 @@ def render_frame(args: argparse.Namespace) -> dict:
     from agvsim.world import load_map
 
     world_map = load_map(args.map)
+    pose = check_pose_on_map(world_map, args.pose)
+    out = image_writer(args.out, "--out")  # (before the work: a name OpenCV cannot write fails at once)
     try:
         mount = parse_mount(args.mount, height=args.camera_height) or world_map.camera_mount
     except argparse.ArgumentTypeError as exc:
@@ -71,11 +72,8 @@ def render_frame(args: argparse.Namespace) -> dict:
     conditions = RenderConditions(lighting=args.lighting, exposure=args.exposure, defocus_px=args.defocus,
                                   focus_distance=args.focus,
                                   velocity=tuple(args.velocity), noise=not args.no_noise, rgb=args.rgb)
-    image, truth = renderer.render(tuple(args.pose), conditions, np.random.default_rng(args.seed))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), image[..., ::-1] if image.ndim == 3 else image):
-        raise ValueError(f"could not write {out} (use a .png/.jpg name)")
+    image, truth = renderer.render(pose, conditions, np.random.default_rng(args.seed))
+    write_image(out, image[..., ::-1] if image.ndim == 3 else image, "--out")
     record = truth.to_dict()
     record.update({"map": world_map.name, "lens_mm": args.lens, "seed": args.seed, "image": str(out),
                    "mount": {"forward": mount.forward, "lateral": mount.lateral, "height": mount.height,

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json
 
 
@@ -10,10 +11,10 @@ def register(sub) -> None:
     p = sub.add_parser("reproduce", help="reproduce a published result",
                        description="Reproduce a published result on synthetic frames.")
     p.add_argument("what", choices=("thesis",), help="thesis: Tables 5.1-5.4 (18 test points)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--noise", type=float, default=1.0, help="sensor noise sigma, grey levels (default 1)")
-    p.add_argument("--blur", type=float, default=0.5, help="optical blur sigma, pixels (default 0.5)")
-    p.add_argument("--column", type=float, default=40.0,
+    p.add_argument("--seed", type=number(0, integer=True), default=0, help="noise seed (default 0)")
+    p.add_argument("--noise", type=number(0.0, unit="grey levels"), default=1.0, help="sensor noise sigma, grey levels (default 1)")
+    p.add_argument("--blur", type=number(0.0, unit="px"), default=0.5, help="optical blur sigma, pixels (default 0.5)")
+    p.add_argument("--column", type=number(unit="px"), default=40.0,
                    help="target centre this many pixels right of the principal point (default 40)")
     add_json_flag(p)
     p.set_defaults(func=run)

@@ -1,6 +1,7 @@
 """Where map files are: the shipped maps folder and name-or-path resolution."""
 from __future__ import annotations
 
+import difflib
 import os
 import sys
 from pathlib import Path
@@ -54,6 +55,8 @@ def resolve_map_path(name_or_path: str | os.PathLike) -> Path:
         candidate = maps_dir() / f"{text}{suffix}"
         if candidate.is_file():
             return candidate
-    shipped = ", ".join(shipped_maps()) or "none found"
-    raise FileNotFoundError(
-        f"no shipped map {text!r} in {maps_dir()} (shipped: {shipped}; or give a path to a .yaml file)")
+    names = tuple(shipped_maps())
+    close = difflib.get_close_matches(text, names, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    raise FileNotFoundError(f"no shipped map {text!r} in {maps_dir()} ({hint}shipped: {', '.join(names) or 'none found'}; "
+                            "or give a path to a .yaml file)")
