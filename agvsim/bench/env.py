@@ -25,11 +25,14 @@ from __future__ import annotations
 
 import multiprocessing as mp
 
+from agvsim.bench.floors import floor_line, verdict
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.registry import SOURCES
 
-#: issue 12's floor: peak memory of one env process, rendered observations on the raycast backend
+#: the floor on the peak memory of one env process (rendered observations, raycast backend), MB
 FLOOR_PEAK_RSS_MB = 300.0
+#: the floor on the policy steps per second of one env process on one core
+FLOOR_STEPS_PER_SECOND = 500.0
 
 CONFIGS = {
     "state": {"observe_image": False},
@@ -172,8 +175,16 @@ def run(args) -> dict:
         result = queue.get()
         proc.join()
         results[name] = {**kwargs, **result}
+        results[name]["floors"] = config_floors(results[name])
     return {"benchmark": "env", "env_id": args.env_id, "configs": results, "skipped": skipped,
-            "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB}
+            "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB, "floor_steps_per_second": FLOOR_STEPS_PER_SECOND}
+
+
+def config_floors(figures: dict) -> dict:
+    """The floors' verdicts for one configuration's figures: ``steps_per_second`` (at least
+    :data:`FLOOR_STEPS_PER_SECOND`) and ``peak_rss_mb`` (at most :data:`FLOOR_PEAK_RSS_MB`)."""
+    return {"steps_per_second": verdict(figures["steps_per_second"], ">=", FLOOR_STEPS_PER_SECOND, "steps/s"),
+            "peak_rss_mb": verdict(figures.get("peak_rss_mb"), "<=", FLOOR_PEAK_RSS_MB, "MB")}
 
 
 def format_table(result: dict) -> str:
@@ -205,6 +216,9 @@ def format_table(result: dict) -> str:
     if ends:
         lines.append("resident at the end, private + mapped library files (shared between processes), MB: "
                      + ", ".join(ends))
-    lines.append(f"floor: peak RSS <= {result['floor_peak_rss_mb']:.0f} MB per env process "
-                 "(rendered observations, raycast backend; issue 12)")
+    for name, r in result["configs"].items():
+        floors = r.get("floors") or config_floors(r)
+        lines.append(f"{name:8}  " + floor_line("steps per second", floors["steps_per_second"], ".1f"))
+        lines.append(f"{name:8}  " + floor_line("peak RSS per env process", floors["peak_rss_mb"], ".0f",
+                                                "rendered observations, raycast backend"))
     return "\n".join(lines)

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from agvsim.commands._output import plural
+
 __all__ = ["format_table", "summarize"]
 
-#: issue 13's floors
+#: the floors (BENCHMARKS.md)
 FLOOR_HONEST = 0.99  # share of steps
 FLOOR_TRACKING_P95 = 0.10  # m
 FLOOR_DETECT_S = 5.0  # s, first refused detection -> lost
@@ -69,7 +71,7 @@ def _pct(v, width: int) -> str:
 
 def format_table(res: dict) -> str:
     m = res["machine"]
-    lines = [f"agvsim bench localization-integrity: {res['workers']} workers, {res['wall_s']:.0f} s wall",
+    lines = [f"agvsim bench localization-integrity: {plural(res['workers'], 'worker')}, {res['wall_s']:.0f} s wall",
              f"machine: {m.get('cpu_model', m.get('processor'))}, {m.get('cpu_count')} CPUs",
              f"{'experiment':18s} {'trials':>6s} {'steps':>7s} {'honest':>8s} {'lost':>6s} {'p95 trk':>8s} "
              f"{'reloc':>5s} {'wrong':>5s} {'det<=5s':>7s} {'det max':>7s} {'recovered':>9s} {'saw 2':>5s} {'rec med':>7s} "

@@ -1,4 +1,4 @@
-"""``agvsim bench localization-integrity``: does the estimate ever lie? (issue 13)
+"""``agvsim bench localization-integrity``: does the estimate ever lie?
 
 Four experiments, each trial in a worker process (a local pool, ``--workers``), on rendered
 frames (the raycast backend, the envs' default camera):

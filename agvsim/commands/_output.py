@@ -27,6 +27,17 @@ def clean_json(value: Any) -> Any:
     return value
 
 
+def doc_help(doc: str) -> str:
+    """A module docstring's first paragraph as help text: one line, without reST's backticks."""
+    return " ".join(doc.strip().split("\n\n")[0].replace("``", "").replace("`", "").split())
+
+
+def plural(count: int, noun: str, plural_form: str | None = None) -> str:
+    """``"1 seed"``, ``"2 seeds"``: ``count`` and ``noun``, pluralised (``plural_form`` if not
+    ``noun + "s"``)."""
+    return f"{count} {noun if count == 1 else plural_form or noun + 's'}"
+
+
 def emit_json(obj: dict[str, Any]) -> None:
     """Print ``obj`` as one JSON object on stdout (NaN/inf become null)."""
     json.dump(clean_json(obj), sys.stdout, indent=2, sort_keys=False)

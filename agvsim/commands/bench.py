@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 import platform
 
-from agvsim.commands._output import add_json_flag, emit_json
+from agvsim.commands._output import add_json_flag, doc_help, emit_json
 
 #: name -> one-line help
 BENCHMARKS: dict[str, str] = {
@@ -17,8 +17,7 @@ BENCHMARKS: dict[str, str] = {
     "localizer": "localizer ms per frame, against ArUco+solvePnP and AprilTag 3",
     "env": "Gymnasium env steps per second, real-time factor and peak memory",
     "render": "camera frames: ms per 512x480 frame, raycaster and pyrender (EGL/llvmpipe) on the same poses",
-    "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes "
-                              "(issue 13)",
+    "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes",
 }
 
 
@@ -44,7 +43,7 @@ def machine_info() -> dict[str, object]:
 
 def register(sub) -> None:
     parser = sub.add_parser("bench", help="run a performance benchmark",
-                            description=__doc__.splitlines()[0])
+                            description=doc_help(__doc__))
     bench_sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
     for name, help_text in BENCHMARKS.items():
         try:

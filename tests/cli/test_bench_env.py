@@ -46,12 +46,17 @@ def test_the_table_shows_the_breakdown(result):
                                                 "rss_end_mb": {"anon": 60.0, "file": 40.0}}},
                           "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB})
     assert "geometric" in table and "skipped" in table
-    assert "floor: peak RSS <= 300 MB per env process" in table and "state 60 + 40" in table
+    assert "state 60 + 40" in table
+    assert "floor: peak RSS per env process <= 300 MB: met (100 MB" in table
+    assert f"floor: steps per second >= 500 steps/s: {'met' if result['steps_per_second'] >= 500 else 'NOT met'}" \
+        in table
     assert "compiled" not in table
     cold = format_table({"env_id": "x", "skipped": [], "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB,
                          "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 900.0,
                                                "kernels_compiled": 12}}})
     assert "compiled 12 kernels" in cold
+    assert "floor: peak RSS per env process <= 300 MB: NOT met (900 MB" in cold
+    assert "issue" not in table + cold
     for part in (*PARTS, "total"):
         assert part in table
 
@@ -104,3 +109,12 @@ def _child_peak(queue) -> None:
     import resource
 
     queue.put((peak_rss_mb(), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0))
+
+
+def test_every_floor_has_a_verdict_in_the_json():
+    from agvsim.bench.env import FLOOR_STEPS_PER_SECOND, config_floors
+
+    floors = config_floors({"steps_per_second": 499.0, "peak_rss_mb": 250.0})
+    assert floors["steps_per_second"] == {"value": 499.0, "op": ">=", "limit": FLOOR_STEPS_PER_SECOND,
+                                          "unit": "steps/s", "met": False}
+    assert floors["peak_rss_mb"]["met"] and floors["peak_rss_mb"]["limit"] == FLOOR_PEAK_RSS_MB
