@@ -218,7 +218,7 @@ def format_table(result: dict) -> str:
                      + ", ".join(ends))
     for name, r in result["configs"].items():
         floors = r.get("floors") or config_floors(r)
-        lines.append(f"{name:8}  " + floor_line("steps per second", floors["steps_per_second"], ".1f"))
+        lines.append(f"{name:8}  " + floor_line("speed", floors["steps_per_second"], ".1f"))
         lines.append(f"{name:8}  " + floor_line("peak RSS per env process", floors["peak_rss_mb"], ".0f",
                                                 "rendered observations, raycast backend"))
     return "\n".join(lines)

@@ -1,4 +1,4 @@
-"""``agvsim demo``: drive the default route of the default map with the
+"""agvsim demo: drive the default route of the default map with the
 camera correcting the drifting odometry.
 
 The vehicle follows the route with pure pursuit steering on its *estimated*
@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
-from agvsim.commands._output import add_json_flag, emit_json, log
+from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
@@ -81,8 +81,6 @@ def format_table(table: list[dict[str, float]]) -> str:
 
 def run(args) -> int:
     import numpy as np
-    from tqdm import tqdm
-
     from agvsim.analysis.plots import error_vs_distance
     from agvsim.analysis.topdown import TopDownView, Trajectory
     from agvsim.loop.mission import MissionConfig, run_mission
@@ -99,14 +97,8 @@ def run(args) -> int:
     rng = np.random.default_rng(args.seed)
     log(f"agvsim demo: map {world_map.name!r}, route {args.route!r} ({total:.0f} m), "
         f"odometry {args.odometry!r}, seed {args.seed}")
-    bar = tqdm(total=round(total), unit="m", desc="driving", disable=args.no_progress, leave=False)
-    last = [0]
-
-    def progress(s: float) -> None:
-        step = int(s) - last[0]
-        if step > 0:
-            bar.update(step)
-            last[0] += step
+    bar = DistanceBar(total, disable=args.no_progress)
+    progress = bar.to  # metres along the route, each control step
 
     started = time.perf_counter()
     estimate = estimate_error = None
@@ -123,9 +115,10 @@ def run(args) -> int:
         estimate = run_log.estimate
         estimate_error = np.linalg.norm(estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
     wall = time.perf_counter() - started
-    bar.close()
     if len(run_log.time) == 0:
+        bar.finish(0.0)
         raise ValueError("the run produced no steps")
+    bar.finish(float(run_log.distance[-1]))  # ends at the metres driven (the summary's "Drove ... m")
     error = np.linalg.norm(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2], axis=1)
     dth = run_log.odometry_pose[:, 2] - run_log.true_pose[:, 2]
     heading = np.arctan2(np.sin(dth), np.cos(dth))

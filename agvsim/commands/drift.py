@@ -1,4 +1,4 @@
-"""``agvsim drift``: how well vision keeps the AGV's pose, over many seeds.
+"""agvsim drift: how well vision keeps the AGV's pose, over many seeds.
 
 Drives a route in closed loop (pure pursuit on the EKF's estimate, camera at
 its own rate, each frame rendered, localized and fused) for every seed, in
@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import time
 from pathlib import Path
 
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from localizer.numeric import check_number
-from agvsim.commands._output import add_json_flag, emit_json, log
+from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log, plural
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
@@ -145,7 +144,6 @@ def run(args) -> int:
     import multiprocessing as mp
 
     import numpy as np
-    from tqdm import tqdm
 
     from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
     from agvsim.sensors.rendered import RenderedSource
@@ -170,14 +168,13 @@ def run(args) -> int:
     workers = max(1, min(workers, len(seeds)))
     source = "none (dead reckoning)" if args.no_vision else args.observations
     log(f"agvsim drift: map {world_map.name!r} ({len(world_map.targets)} targets), route {args.route!r}, "
-        f"{args.distance:g} m x {len(seeds)} seeds, odometry {args.odometry!r}, camera {args.camera_rate:g} Hz "
-        f"(latency {args.latency:g} s), observations: {source}, {workers} workers")
+        f"{args.distance:g} m x {plural(len(seeds), 'seed')}, odometry {args.odometry!r}, camera {args.camera_rate:g} Hz "
+        f"(latency {args.latency:g} s), observations: {source}, {plural(workers, 'worker')}")
     base = {"map": args.map, "route": args.route, "distance": args.distance, "odometry": args.odometry,
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
             "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
             "camera_mount": args.camera_mount, "backend": args.backend}
-    bar = tqdm(total=round(args.distance * len(seeds)), unit="m", desc="driving", disable=args.no_progress,
-               leave=False, file=sys.stderr)
+    bar = DistanceBar(args.distance * len(seeds), disable=args.no_progress)
     started = time.perf_counter()
     logs = {}
     out = Path(args.out)
@@ -197,7 +194,7 @@ def run(args) -> int:
     if workers == 1:
         class _Q:
             def put(self, v):
-                bar.update(v)
+                bar.add(v)
         for seed in seeds:
             finished(*_job({**base, "seed": seed, "queue": _Q()}))
     else:
@@ -217,10 +214,10 @@ def run(args) -> int:
                         done += 1
                     try:
                         while True:
-                            bar.update(queue.get_nowait())
+                            bar.add(queue.get_nowait())
                     except Exception:
                         pass
-    bar.close()
+    bar.finish()
     wall = time.perf_counter() - started
     per_seed = []
     for s in seeds:
@@ -266,8 +263,9 @@ def run(args) -> int:
               f"of distance); frames with an accepted observation "
               f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}; "
               f"lost {summary['lost']} times for {summary['time_lost_s']:.1f} s in all, recovered "
-              f"{summary['relocalizations']} times (re-localizations); arrival error mean "
-              f"{100 * summary['arrival_error_mean_m']:.1f} cm")
+              f"{summary['relocalizations']} times (re-localizations); "
+              + (f"arrival error mean {100 * summary['arrival_error_mean_m']:.1f} cm"
+                 if math.isfinite(summary["arrival_error_mean_m"]) else "no station reached"))
         if not args.no_vision:
             print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))
         print(f"wall time {wall:.1f} s; files in {out}")
