@@ -72,7 +72,7 @@ def test_camera_strip(tmp_path, gl_context):
     r = CameraRenderer(m, mount=mount, context=gl_context, backend="pyrender")
     res = save_camera_strip(m, poses, tmp_path / "strip.png", renderer=r, rng=np.random.default_rng(0), columns=3)
     img = cv2.imread(res["path"])
-    assert img.shape == (240, 768, 3)
+    assert img.shape[1] == 768 and img.shape[0] > 240  # the legend on top, captions below the tiles
     found = [f for fr in res["frames"] for f in fr["found"]]
     assert len(found) >= 2
     for f in found:

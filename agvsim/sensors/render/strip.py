@@ -72,10 +72,77 @@ def _best_station(world_map, a, e, length, s0, yaw: float = 0.0) -> float:
     return best
 
 
+#: what the strip's marks mean, drawn across its top
+LEGEND = ("Camera frames at true poses along the route.  Green: bar edges found; red: bar heights;",
+          "yellow: the localizer's d, α, β;  magenta box: a decoy sign (not a target: it must not be found).")
+CAPTION_PX = 14  # text size (px) at the strip's final size: capitals about 10 px high
+_DECOY_NAMES = {"bars_sign": "two-bar look-alike", "striped_sign": "striped sign", "barcode": "barcode",
+                "hazard_sign": "hazard sign"}
+_DECOY = (255, 0, 255)  # BGR magenta
+_TEXT, _DIM, _OK, _WARN = (255, 255, 255), (200, 200, 200), (120, 230, 120), (80, 170, 255)
+
+
+def decoys_in_view(distractors, world_map, camera: Camera, cam_pose) -> list[tuple[str, np.ndarray]]:
+    """The scene's distractors (decoy signs) the camera at ``cam_pose`` sees: ``(kind, (4, 2) pixel
+    corners)`` for each one in front of the camera, facing it, with its centre inside the frame and
+    a clear line of sight to it."""
+    out = []
+    lens = np.asarray(cam_pose.position, float)
+    for d in distractors:
+        c = np.asarray(d.centre, float)
+        n = np.asarray(d.normal, float)
+        if float(np.dot(n, lens[:2] - c[:2])) <= 0.0:
+            continue
+        t = np.array([-n[1], n[0]])
+        w, h = 0.5 * d.size[0], 0.5 * d.size[1]
+        quad = np.array([[*(c[:2] + s * w * t), c[2] + v * h] for s, v in ((-1, 1), (1, 1), (1, -1), (-1, -1))])
+        pts = cam_pose.to_camera(np.vstack([quad, c]))
+        if np.any(pts[:, 2] < 0.2):
+            continue
+        px = camera.project(pts)
+        if not (0 <= px[4, 0] < camera.width and 0 <= px[4, 1] < camera.height):
+            continue
+        if world_map.line_of_sight(lens[:2], c[:2] + 0.05 * n):
+            out.append((d.kind, px[:4]))
+    return out
+
+
+def _caption(width: int, lines: list[tuple[str, tuple[int, int, int]]]) -> np.ndarray:
+    """A dark band ``width`` px wide with one line of text per ``(text, BGR colour)``."""
+    from localizer.annotation import draw_text, text_box
+
+    step = text_box("Ag", CAPTION_PX, 0)[1] + 4
+    band = np.full((6 + step * len(lines), width, 3), 32, np.uint8)
+    for i, (text, colour) in enumerate(lines):
+        draw_text(band, text, (6, 3 + i * step), CAPTION_PX, color=colour, halo_color=None)
+    return band
+
+
+def _mark_decoys(tile: np.ndarray, decoys, scale: float) -> None:
+    """Outline each decoy on ``tile`` and write "decoy" next to it (at the tile's size)."""
+    import cv2
+
+    from localizer.annotation import draw_text, text_box
+
+    for _, px in decoys:
+        q = np.round(px * scale).astype(np.int32)
+        cv2.polylines(tile, [q], True, _DECOY, 2, cv2.LINE_AA)
+        w, h = text_box("decoy", CAPTION_PX)
+        x = int(np.clip(q[:, 0].min(), 0, tile.shape[1] - w))
+        y = int(q[:, 1].min()) - h - 2
+        if y < 0:
+            y = int(min(q[:, 1].max() + 2, tile.shape[0] - h))
+        draw_text(tile, "decoy", (x, y), CAPTION_PX, color=_DECOY, halo_color=(0, 0, 0))
+
+
 def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng: np.random.Generator | None = None,
                       renderer=None, mount=None, conditions=None, columns: int = 4, scale: float = 0.5) -> dict:
     """Render frames at the true ``poses``, run :func:`localizer.detect_targets` on each,
     annotate what it found and tile the frames into one PNG.
+
+    Each tile is the frame at ``scale`` with the localizer's marks and labels (drawn at the
+    tile's size), decoy signs in view outlined, and a caption below it (pose, targets in view and
+    found, decoys); a legend across the top says what the marks mean.
 
     Args:
         world_map: the map (ignored for rendering when ``renderer`` is given).
@@ -88,24 +155,30 @@ def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng:
         mount, conditions: for a new renderer / every frame.
         columns: frames per row of the strip. scale: size of each tile relative to the frame.
     Returns:
-        ``{"path", "frames": [{"pose", "visible", "found": [{"distance", "alpha", "beta",
-        "polarity", "target", "distance_error", "alpha_error"}]}]}`` (SI units).
+        ``{"path", "frames": [{"pose", "visible", "decoys", "found": [{"distance", "alpha", "beta",
+        "polarity", "target", "distance_error", "alpha_error"}]}]}`` (SI units; ``decoys``: the
+        kinds of the decoy signs in view).
     """
     import cv2
 
     from localizer import annotate, detect_targets
+    from agvsim.sensors.render.mount import CameraPose
     from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
+    from agvsim.sensors.render.scene import build_scene
 
     if renderer is None:
         renderer = CameraRenderer(world_map, camera=camera, mount=mount)
     rng = rng if rng is not None else np.random.default_rng(0)
     conditions = conditions if conditions is not None else RenderConditions()
+    distractors = build_scene(renderer.map).distractors
     tiles, frames = [], []
     for k, pose in enumerate(poses):
         image, truth = renderer.render(pose, conditions, rng)
         grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
         obs = detect_targets(grey, renderer.camera)
         vis = [t for t in truth.targets if t.visible]
+        decoys = decoys_in_view(distractors, renderer.map, renderer.camera,
+                                CameraPose.from_vehicle(renderer.mount, pose))
         found = []
         for o in obs:
             match = min(vis, key=lambda t: abs(t.beta - o.beta), default=None)
@@ -115,25 +188,34 @@ def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng:
                           "target": match.id if match else None,
                           "distance_error": (o.distance - match.distance) if match else None,
                           "alpha_error": (o.alpha - match.alpha) if match else None})
-        frames.append({"pose": [float(v) for v in pose], "visible": [t.id for t in vis], "found": found})
-        tile = annotate(grey, obs)
-        label = f"#{k + 1} ({pose[0]:.1f}, {pose[1]:.1f}, {math.degrees(pose[2]):.0f} deg)  " \
-                f"visible {len(vis)} found {len(obs)}"
-        cv2.putText(tile, label, (6, tile.shape[0] - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
-        cv2.putText(tile, label, (6, tile.shape[0] - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 255), 1,
-                    cv2.LINE_AA)
-        if scale != 1.0:
-            tile = cv2.resize(tile, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-        tiles.append(tile)
+        frames.append({"pose": [float(v) for v in pose], "visible": [t.id for t in vis],
+                       "decoys": [kind for kind, _ in decoys], "found": found})
+        tile = annotate(grey, obs, scale=scale)
+        _mark_decoys(tile, decoys, scale)
+        wrong = sum(f["target"] is None for f in found)
+        lines = [(f"#{k + 1}  x={pose[0]:.1f} m  y={pose[1]:.1f} m  θ={math.degrees(pose[2]):.0f}°", _TEXT),
+                 (f"targets: {len(vis)} in view, {len(obs) - wrong} found" + (f", {wrong} false" if wrong else ""),
+                  _OK if len(obs) - wrong == len(vis) and not wrong else _WARN)]
+        if decoys:
+            names = sorted({_DECOY_NAMES.get(kind, kind.replace("_", " ")) for kind, _ in decoys})
+            lines.append((f"decoy{'s' if len(decoys) > 1 else ''}: " + ", ".join(names), _DECOY))
+        else:
+            lines.append(("no decoy in view", _DIM))
+        tiles.append(np.vstack([tile, _caption(tile.shape[1], lines)]))
     if not tiles:
         raise ValueError("poses is empty")
     columns = max(1, min(columns, len(tiles)))
-    blank = np.zeros_like(tiles[0])
+    blank = np.full_like(tiles[0], 32)
     while len(tiles) % columns:
         tiles.append(blank)
+    for t in tiles:  # a 2 px gap between tiles
+        t[:, -2:] = 255
+        t[-2:, :] = 255
     rows = [np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)]
+    body = np.vstack(rows)
+    head = _caption(body.shape[1], [(line, _TEXT) for line in LEGEND])
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), np.vstack(rows)):
+    if not cv2.imwrite(str(path), np.vstack([head, body])):
         raise ValueError(f"could not write {path}")
     return {"path": str(path), "frames": frames}
