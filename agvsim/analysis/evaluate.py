@@ -215,7 +215,7 @@ def wmean_sq(per_seed, key, w):
 
 
 def floors_met(summary: dict) -> dict:
-    """{floor key: (value, op, limit, met)} for the issue's floors."""
+    """{floor key: (value, op, limit, met)} for the drift floors (:data:`FLOORS`)."""
     out = {}
     for key, (op, limit) in FLOORS.items():
         v = summary.get(key, math.nan)

@@ -3,8 +3,8 @@
 The path is the polyline through the route's station positions (a closed
 loop when ``loop`` is set). The follower steers towards a look-ahead point
 on the path and limits its speed by the path curvature and the distance to
-the next stop. It is given a *pose* each step: the true pose in the world
-issue's demo, the estimated pose once the filter exists. It never reads
+the next stop. It is given a *pose* each step: the estimate (the closed loop)
+or the true pose (``steer_on="truth"``, dead-reckoning runs). It never reads
 ground truth itself.
 
 Pure pursuit (Coulter 1992): with the look-ahead point at angle η from the

@@ -24,7 +24,7 @@ __all__ = ["RenderedSource"]
 
 
 class RenderedSource:
-    """Frames from the issue-4 renderer (:class:`agvsim.sensors.render.CameraRenderer`), targets from
+    """Frames from the camera renderer (:class:`agvsim.sensors.render.CameraRenderer`), targets from
     :func:`localizer.detect_targets`.
 
     The renderer (one GL context per process) is created lazily at the first

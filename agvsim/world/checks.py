@@ -2,7 +2,7 @@
 
 Run by the loader after every field has been read. Each check raises a
 :class:`~agvsim.world.fields.MapError` pointing at the field to fix. The
-vehicle is the issue's 1.0 x 0.7 m AGV; its half-diagonal is 0.61 m, so
+vehicle is the 1.0 x 0.7 m AGV; its half-diagonal is 0.61 m, so
 stations and route legs keep :data:`VEHICLE_CLEARANCE` from every solid.
 """
 from __future__ import annotations

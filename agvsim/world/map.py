@@ -285,7 +285,9 @@ class Map:
             "walls": len(self.walls),
             "obstacles": len(self.obstacles),
             "stations": len(self.stations),
-            "routes": {name: {"stations": len(ids), "length": self.route_length(name),
+            # a loop's list ends at its start again: its stations are counted once (as the
+            # follower's arrivals and the envs count them)
+            "routes": {name: {"stations": len(set(ids)), "length": self.route_length(name),
                               "loop": ids[0] == ids[-1]} for name, ids in self.routes.items()},
             "targets": {"total": len(self.targets), **polarity},
             "lighting": {"default": self.lighting_default,

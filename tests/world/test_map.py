@@ -260,3 +260,30 @@ def test_summary_counts():
     assert s["targets"]["total"] == s["targets"]["positive"] + s["targets"]["negative"]
     assert s["routes"]["default"]["loop"] is True
     assert len(s["bounds"]) == 4
+
+
+def test_shipped_descriptions_state_the_maps_own_counts():
+    import re
+
+    from agvsim.world import shipped_maps
+
+    for name in shipped_maps():
+        m = load_map(name)
+        for n in re.findall(r"(\d+) (?:wall )?targets", m.description):
+            assert int(n) == len(m.targets), (name, m.description)
+        for n in re.findall(r"(\d+) m ring route", m.description):
+            assert float(n) == pytest.approx(m.route_length("default"), abs=0.5), name
+
+
+def test_a_loop_route_counts_its_start_once_as_the_follower_does():
+    from agvsim.loop.mission import MissionConfig, run_mission
+
+    m = load_map("corridor")
+    ids = m.routes["default"]
+    assert ids[0] == ids[-1]  # a loop: the list ends at its start again
+    routes = m.summary()["routes"]
+    assert routes["default"]["stations"] == len(ids) - 1 == len(set(ids))
+    assert routes["one_way"]["stations"] == len(m.routes["one_way"])
+    # one lap passes every station of the loop once: the demo's and drift's stations_reached
+    log = run_mission(m, None, np.random.default_rng(0), MissionConfig(vision=False, steer_on="truth"))
+    assert log.completed and len(log.arrivals) == routes["default"]["stations"]
