@@ -13,7 +13,14 @@ from typing import Any
 import numpy as np
 
 
+#: significant digits a float keeps in JSON output: far beyond any measurement's precision (and
+#: float64's 15-17), short of the binary noise of sums such as 40.400000000000006
+JSON_DIGITS = 12
+
+
 def clean_json(value: Any) -> Any:
+    """``value`` as plain JSON data: numpy arrays and scalars as lists and numbers, NaN and
+    infinities as None, floats rounded to :data:`JSON_DIGITS` significant digits."""
     if isinstance(value, dict):
         return {str(k): clean_json(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -22,8 +29,8 @@ def clean_json(value: Any) -> Any:
         return clean_json(value.tolist())
     if isinstance(value, np.generic):
         return clean_json(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
+    if isinstance(value, float):
+        return float(f"{value:.{JSON_DIGITS}g}") if math.isfinite(value) else None
     return value
 
 
