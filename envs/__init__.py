@@ -7,7 +7,9 @@ namespace::
     env = gymnasium.make("agvsim/PlantFloor-v1", localization="ekf")
 
 or without the import: ``gymnasium.make("envs:agvsim/PlantFloor-v1")``.
-Versions: ``-v1`` observes the localization status (``observe_status=True``);
+Versions: ``-v2`` observes the covariance as its 6 unique entries (``covariance="flat"``,
+the flat vector Stable-Baselines3 and RLlib expect), and the status as ``-v1``; ``-v1``
+observes the localization status (``observe_status=True``) and the 3 x 3 covariance;
 ``-v0`` is kept as it was (no ``status`` in the observation).
 No physics, vision or filtering lives here: see :class:`envs.agv_env.AGVEnv`.
 """
@@ -22,8 +24,10 @@ _BASE_SPECS: dict[str, tuple[dict, int]] = {
     "agvsim/Corridor": ({"map": "corridor", "task": "goto"}, 1500),
     "agvsim/ActiveLocalization": ({"map": "plant_floor", "task": "localize"}, 1000),
 }
-#: version suffix -> the keyword arguments it adds (v1: the localization status observed)
-VERSIONS: dict[str, dict] = {"v0": {}, "v1": {"observe_status": True}}
+#: version suffix -> the keyword arguments it adds (v1: the localization status observed; v2:
+#: and the covariance as its 6 unique entries, the flat vector SB3 and RLlib expect)
+VERSIONS: dict[str, dict] = {"v0": {}, "v1": {"observe_status": True},
+                             "v2": {"observe_status": True, "covariance": "flat"}}
 
 #: id -> (default keyword arguments, max_episode_steps)
 ENV_SPECS: dict[str, tuple[dict, int]] = {

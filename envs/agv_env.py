@@ -15,6 +15,10 @@ from localizer.numeric import check_numbers, wrap_angle
 
 #: the keys ``reset(options=...)`` accepts
 RESET_OPTIONS = ("start_pose", "believed_pose")
+#: (row, column) of each entry of the flat ``covariance`` observation: the upper triangle, row
+#: by row (xx, xy, xθ, yy, yθ, θθ)
+COVARIANCE_FLAT_INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_FLAT_ROWS, _FLAT_COLS = (np.array(ix) for ix in zip(*COVARIANCE_FLAT_INDEX))
 
 
 class AGVEnv(gym.Env):
@@ -39,7 +43,11 @@ class AGVEnv(gym.Env):
     ## Observation space
     ``Dict``:
     - ``pose``: ``Box((3,), float32)`` believed (x m, y m, θ rad), θ in [-π, π).
-    - ``covariance``: ``Box((3, 3), float32)`` its covariance (m², m·rad, rad²).
+    - ``covariance``: its covariance (m², m·rad, rad²). ``covariance="flat"`` (``-v2``):
+      ``Box((6,), float32)``, the matrix's unique entries (it is symmetric), upper
+      triangle row by row: (xx, xy, xθ, yy, yθ, θθ) (:data:`COVARIANCE_FLAT_INDEX`), the
+      flat vector Stable-Baselines3 and RLlib expect; ``covariance="matrix"`` (``-v0``,
+      ``-v1``): ``Box((3, 3), float32)``, the matrix itself.
     - ``goal``: ``Box((3,), float32)`` the goal in the believed vehicle frame:
       (forward m, left m, heading difference rad). Zeros for ``localize``.
     - ``wheel_speeds``: ``Box((2,), float32)`` measured (left, right) rim speeds (m/s).
@@ -93,7 +101,7 @@ class AGVEnv(gym.Env):
     camera_rate=4.0, camera_latency=0.25, observations={observations},
     camera_mount=None | CameraMount | dict (None: the map's recommended mount),
     lens={lenses}, lighting_randomization=0.0, observe_image=False,
-    observe_status=False (True in -v1), policy_rate=10.0, goal_radius=0.5,
+    observe_status=False (True in -v1, -v2), covariance="matrix" ("flat" in -v2), policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
     error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
     ``ValueError``. See :class:`envs.config.EnvConfig` for units.
@@ -120,6 +128,7 @@ class AGVEnv(gym.Env):
     ``vector_kwargs={"context": "spawn"}`` there.
 
     ## Version history
+    - v2: the ``covariance`` observation is flat (``covariance="flat"``, 6 entries); else as v1.
     - v1: the observation gains ``status`` (``observe_status=True``); every version's
       info gains ``localization``, ``reset`` its ``start_pose`` / ``believed_pose``
       options, the env its ``kidnap``.
@@ -156,7 +165,8 @@ class AGVEnv(gym.Env):
         obs = {
             "pose": spaces.Box(np.array([xmin - span, ymin - span, -math.pi], np.float32),
                                np.array([xmax + span, ymax + span, math.pi], np.float32), dtype=np.float32),
-            "covariance": spaces.Box(-big, big, (3, 3), np.float32),
+            "covariance": spaces.Box(-big, big, (6,) if self.config.covariance == "flat" else (3, 3),
+                                     np.float32),
             "goal": spaces.Box(np.array([-3 * span, -3 * span, -math.pi], np.float32),
                                np.array([3 * span, 3 * span, math.pi], np.float32), dtype=np.float32),
             "wheel_speeds": spaces.Box(-2 * vp.max_speed, 2 * vp.max_speed, (2,), np.float32),
@@ -348,7 +358,8 @@ class AGVEnv(gym.Env):
             goal = np.zeros(3, dtype=np.float32)
         obs = {
             "pose": pose.astype(np.float32),
-            "covariance": cov.astype(np.float32),
+            "covariance": (cov[_FLAT_ROWS, _FLAT_COLS] if self.config.covariance == "flat"
+                           else cov).astype(np.float32),
             "goal": goal,
             "wheel_speeds": np.array(wheels, dtype=np.float32),
         }

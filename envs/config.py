@@ -13,6 +13,10 @@ from envs.tasks import TASK_NAMES
 from localizer.mount import CameraMount
 from localizer.numeric import check_choice, check_number
 
+#: the forms of the ``covariance`` observation: the 3 x 3 matrix, or its 6 unique entries
+#: (upper triangle, row by row: xx, xy, xθ, yy, yθ, θθ), the flat vector SB3 and RLlib expect
+COVARIANCE_FORMS = ("matrix", "flat")
+
 
 @dataclass(frozen=True)
 class EnvConfig:
@@ -42,7 +46,10 @@ class EnvConfig:
             rendered frames, σ this value (dimensionless; 0 disables it).
         observe_image: add the latest camera frame to the observation.
         observe_status: add the localization status to the observation (``status``: its index
-            in :data:`localizer.filter.STATUSES`); the ``-v1`` environments set it.
+            in :data:`localizer.filter.STATUSES`); the ``-v1`` and ``-v2`` environments set it.
+        covariance: the form of the ``covariance`` observation, one of :data:`COVARIANCE_FORMS`:
+            ``matrix`` (3 x 3; ``-v0``, ``-v1``) or ``flat`` (its 6 unique entries, upper
+            triangle row by row: xx, xy, xθ, yy, yθ, θθ; ``-v2``).
         policy_rate: actions per second (Hz); a whole divisor of the physics rate.
         goal_radius: the goal is reached within this distance (m).
         terminate_on_collision: end the episode at the first contact.
@@ -65,6 +72,7 @@ class EnvConfig:
     lighting_randomization: float = 0.0  # dimensionless
     observe_image: bool = False
     observe_status: bool = False
+    covariance: str = "matrix"
     policy_rate: float = 10.0  # Hz
     goal_radius: float = 0.5  # m
     terminate_on_collision: bool = False
@@ -77,6 +85,7 @@ class EnvConfig:
         check_choice("EnvConfig.localization", self.localization, LOCALIZATION_MODES)
         check_choice("EnvConfig.odometry", self.odometry, PRESETS)
         check_choice("EnvConfig.observations", self.observations, SOURCES)
+        check_choice("EnvConfig.covariance", self.covariance, COVARIANCE_FORMS)
         check_backend(self.render_backend, "EnvConfig.render_backend")
         if isinstance(self.camera_mount, dict):
             known = [f.name for f in fields(CameraMount)]

@@ -26,15 +26,16 @@ def make(env_id="agvsim/PlantFloor-v1", **kw):
         return gym.make(env_id, **{**FAST, **kw})
 
 
-def test_every_env_has_a_v0_and_a_v1():
+def test_every_env_has_a_v0_a_v1_and_a_v2():
     names = {i.rsplit("-", 1)[0] for i in envs.ENV_SPECS}
-    assert {f"{n}-{v}" for n in names for v in ("v0", "v1")} == set(envs.ENV_SPECS)
-    assert all(envs.ENV_SPECS[f"{n}-v1"][0].get("observe_status") is True for n in names)
+    assert {f"{n}-{v}" for n in names for v in ("v0", "v1", "v2")} == set(envs.ENV_SPECS)
+    assert all(envs.ENV_SPECS[f"{n}-{v}"][0].get("observe_status") is True for n in names for v in ("v1", "v2"))
+    assert all(envs.ENV_SPECS[f"{n}-v2"][0].get("covariance") == "flat" for n in names)
     assert all("observe_status" not in envs.ENV_SPECS[f"{n}-v0"][0] for n in names)
 
 
 @pytest.mark.parametrize("env_id", sorted(envs.ENV_SPECS))
-def test_check_env_passes_for_v0_and_v1(env_id):
+def test_check_env_passes_for_every_version(env_id):
     env = make(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -193,3 +194,34 @@ def test_unknown_start_is_reported_lost_until_the_filter_relocalizes():
     assert [STATUSES[c] for c in codes][0] == LOST and STATUSES[codes[-1]] == TRACKING
     assert info["localization"]["relocalizations"] == 1 and info["localization"]["reason"] is None
     assert info["position_error"] < 0.5
+
+
+def test_v2_observes_the_covariance_flat_as_sb3_and_rllib_expect():
+    """The 6 unique entries of the symmetric matrix, upper triangle row by row; every Box of
+    the observation 1-D or an image (Stable-Baselines3's checker warns on any other shape)."""
+    from envs.agv_env import COVARIANCE_FLAT_INDEX
+
+    v1, v2 = make("agvsim/PlantFloor-v1"), make("agvsim/PlantFloor-v2")
+    assert v1.observation_space["covariance"].shape == (3, 3)  # -v1 keeps the documented matrix
+    assert v2.observation_space["covariance"].shape == (6,)
+    for key, space in gym.make("agvsim/PlantFloor-v2", observe_image=True).observation_space.spaces.items():
+        if isinstance(space, spaces.Box):
+            assert len(space.shape) == 1 or (len(space.shape) == 3 and space.dtype == np.uint8), key
+    assert COVARIANCE_FLAT_INDEX == ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+    obs1, _ = v1.reset(seed=5)
+    obs2, _ = v2.reset(seed=5)
+    for _ in range(3):
+        a = np.array([0.5, 0.2], np.float32)
+        obs1, *_ = v1.step(a)
+        obs2, *_ = v2.step(a)
+    assert v2.observation_space.contains(obs2)
+    expected = np.array([obs1["covariance"][i, j] for i, j in COVARIANCE_FLAT_INDEX], np.float32)
+    np.testing.assert_array_equal(obs2["covariance"], expected)
+    assert obs2["covariance"][1] == obs1["covariance"][1, 0]  # symmetric: nothing lost
+    flat = make("agvsim/PlantFloor-v1", covariance="flat")
+    assert flat.observation_space["covariance"].shape == (6,)
+
+
+def test_covariance_form_is_validated():
+    with pytest.raises(ValueError, match="EnvConfig.covariance must be one of matrix, flat; got .diagonal."):
+        EnvConfig(covariance="diagonal")
