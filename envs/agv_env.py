@@ -121,7 +121,8 @@ class AGVEnv(gym.Env):
     ## Rendering
     ``render_mode="rgb_array"``: the top-down view with the true,
     dead-reckoned and estimated trajectories, the 2σ covariance ellipse, the
-    camera's field of view, and the latest camera frame inset. No OpenGL is
+    camera's field of view, and, in a panel beside the map, the key (what each
+    colour means, a scale bar) and the latest camera frame. No OpenGL is
     touched until a camera frame is needed, so ``gymnasium.make_vec(...,
     vectorization_mode="async")`` works with forked workers. A process that
     has already rendered camera frames itself must not fork renderers: pass
@@ -279,7 +280,9 @@ class AGVEnv(gym.Env):
         from agvsim.analysis.topdown import TopDownView, Trajectory
 
         if self._view is None:
-            self._view = TopDownView(self.map, pixels_per_metre=12.0, max_size=800)
+            cam = self.vision.camera
+            self._view = TopDownView(self.map, pixels_per_metre=12.0, max_size=800, key="right",
+                                     camera_size=(cam.width, cam.height))
         ep = self._episode
         trajectories = (Trajectory(np.array(self._paths["true"]), (30, 150, 40), "true"),
                         Trajectory(np.array(self._paths["odometry"]), (210, 40, 40), "dead reckoning"),
@@ -287,9 +290,7 @@ class AGVEnv(gym.Env):
         cov = ep.covariance[:2, :2]
         img = self._view.render(trajectories, vehicle_pose=tuple(ep.true_pose),
                                 ellipses=((ep.believed_pose[:2], cov, (40, 90, 220)),),
-                                fov=self._camera_fov(ep.true_pose))
-        if self._frame is not None:
-            img = _inset(img, self._frame)
+                                fov=self._camera_fov(ep.true_pose), camera_frame=self._frame)
         return img
 
     def _camera_fov(self, pose: np.ndarray):
@@ -387,24 +388,6 @@ class AGVEnv(gym.Env):
             "observations": {"accepted": int(accepted), "rejected": int(rejected)},
             "collision": bool(collision),
         }
-
-
-def _inset(canvas: np.ndarray, frame: np.ndarray) -> np.ndarray:
-    """Paste a grey camera frame, scaled to a third of the canvas width, at its top right."""
-    import cv2
-
-    h, w = canvas.shape[:2]
-    tw = max(64, w // 3)
-    th = int(round(frame.shape[0] * tw / frame.shape[1]))
-    if th >= h:
-        return canvas
-    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
-    if small.ndim == 2:
-        small = np.repeat(small[..., None], 3, axis=2)
-    out = canvas.copy()
-    out[4:4 + th, w - tw - 4:w - 4] = small[..., :3]
-    cv2.rectangle(out, (w - tw - 5, 3), (w - 3, 5 + th), (20, 20, 20), 1)
-    return out
 
 
 def _choices(values) -> str:

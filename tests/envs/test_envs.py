@@ -209,3 +209,17 @@ def test_async_vector_env_steps():
     out = subprocess.run([sys.executable, "-c", ASYNC_SCRIPT], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().endswith("ok")
+
+
+def test_rgb_array_keeps_the_camera_frame_and_key_off_the_map():
+    env = gym.make("agvsim/PlantFloor-v0", **FAST, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.array([0.5, 0.0]))
+    img = env.render()
+    view = env.unwrapped._view
+    u0, v0, u1, v1 = view.map_box
+    x0, y0, x1, y1 = view.inset_box
+    assert x0 >= u1 and view.key_box[0] >= u1  # beside the map: no station or target under them
+    assert (x1 - x0) * (y1 - y0) < img.shape[0] * img.shape[1] / 8
+    assert view.inset_fraction < 1 / 8
+    env.close()
