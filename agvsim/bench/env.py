@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 
+from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
 from agvsim.loop.modes import LOCALIZATION_MODES
 from agvsim.sensors.registry import SOURCES
@@ -47,7 +48,7 @@ _LOOP_KEYS = {"physics": "sim", "render": "render", "localize": "localize", "fil
 
 def add_arguments(parser) -> None:
     parser.add_argument("--env-id", default="agvsim/PlantFloor-v1")
-    parser.add_argument("--steps", type=int, default=600, help="timed policy steps (default: %(default)s)")
+    parser.add_argument("--steps", type=number(1, integer=True), default=600, help="timed policy steps (default: %(default)s)")
     parser.add_argument("--localization", default="ekf", choices=LOCALIZATION_MODES)
     parser.add_argument("--observations", default=None, choices=SOURCES,
                         help="observation source (default: the env's, rendered); the image config "

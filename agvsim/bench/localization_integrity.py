@@ -36,6 +36,7 @@ import time
 
 import numpy as np
 
+from agvsim.commands._args import number
 from agvsim.bench.integrity_report import format_table, summarize
 
 __all__ = ["EXPERIMENTS", "add_arguments", "format_table", "run", "summarize"]
@@ -52,15 +53,15 @@ MAPS = ("plant_floor", "corridor")
 
 def add_arguments(parser) -> None:
     parser.add_argument("--experiments", nargs="+", default=list(EXPERIMENTS), choices=EXPERIMENTS)
-    parser.add_argument("--seeds", type=int, default=20, help="random-agent drives (default: %(default)s)")
-    parser.add_argument("--steps", type=int, default=3000, help="policy steps per drive (default: %(default)s)")
-    parser.add_argument("--kidnaps", type=int, default=50, help="kidnap trials (default: %(default)s)")
-    parser.add_argument("--unknown", type=int, default=20, help="unknown-start trials per map (default: %(default)s)")
-    parser.add_argument("--walls", type=int, default=20, help="wall-push trials (default: %(default)s)")
-    parser.add_argument("--settle", type=float, default=15.0, help="s driven before the event (default: %(default)s)")
-    parser.add_argument("--after", type=float, default=45.0, help="s driven after the event (default: %(default)s)")
-    parser.add_argument("--push", type=float, default=60.0, help="s pushing into the wall (default: %(default)s)")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes (default: %(default)s)")
+    parser.add_argument("--seeds", type=number(1, integer=True), default=20, help="random-agent drives (default: %(default)s)")
+    parser.add_argument("--steps", type=number(1, integer=True), default=3000, help="policy steps per drive (default: %(default)s)")
+    parser.add_argument("--kidnaps", type=number(0, integer=True), default=50, help="kidnap trials (default: %(default)s)")
+    parser.add_argument("--unknown", type=number(0, integer=True), default=20, help="unknown-start trials per map (default: %(default)s)")
+    parser.add_argument("--walls", type=number(0, integer=True), default=20, help="wall-push trials (default: %(default)s)")
+    parser.add_argument("--settle", type=number(0.0, unit="s"), default=15.0, help="s driven before the event (default: %(default)s)")
+    parser.add_argument("--after", type=number(0.0, low_open=True, unit="s"), default=45.0, help="s driven after the event (default: %(default)s)")
+    parser.add_argument("--push", type=number(0.0, low_open=True, unit="s"), default=60.0, help="s pushing into the wall (default: %(default)s)")
+    parser.add_argument("--workers", type=number(1, integer=True), default=2, help="worker processes (default: %(default)s)")
 
 
 # ----------------------------------------------------------------------------- per step

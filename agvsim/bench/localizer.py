@@ -22,6 +22,7 @@ import math
 import statistics
 import time
 
+from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
 
 #: the floor on a blank frame (nothing to find), ms per call of the default localizer
@@ -35,10 +36,10 @@ _APRILTAG_DETECTOR: list = []
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--frames", type=int, default=40, help="speed frames per configuration (default 40)")
-    p.add_argument("--repeats", type=int, default=5, help="timed repeats per frame (default 5)")
-    p.add_argument("--samples", type=int, default=600, help="accuracy frames over the envelope (default 600)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--frames", type=number(1, integer=True), default=40, help="speed frames per configuration (default 40)")
+    p.add_argument("--repeats", type=number(1, integer=True), default=5, help="timed repeats per frame (default 5)")
+    p.add_argument("--samples", type=number(1, integer=True), default=600, help="accuracy frames over the envelope (default 600)")
+    p.add_argument("--seed", type=number(0, integer=True), default=0)
     p.add_argument("--skip-peers", action="store_true", help="time only the localizer")
 
 

@@ -22,15 +22,16 @@ import math
 import statistics
 import time
 
+from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--map", default="plant_floor", help="map (default: %(default)s)")
-    parser.add_argument("--frames", type=int, default=40, help="timed frames per configuration (default: %(default)s)")
-    parser.add_argument("--lens", type=float, default=16.0, help="thesis lens, mm (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--passes", type=int, default=5,
+    parser.add_argument("--frames", type=number(1, integer=True), default=40, help="timed frames per configuration (default: %(default)s)")
+    parser.add_argument("--lens", type=number(0.0, low_open=True, unit="mm"), default=16.0, help="thesis lens, mm (default: %(default)s)")
+    parser.add_argument("--seed", type=number(0, integer=True), default=0)
+    parser.add_argument("--passes", type=number(1, integer=True), default=5,
                         help="passes over the poses for the raycaster's figures (default: %(default)s)")
 
 

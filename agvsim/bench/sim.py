@@ -12,6 +12,7 @@ import math
 import time
 
 from localizer.numeric import check_number
+from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
 from agvsim.vehicle.encoders import PRESETS
 
@@ -22,9 +23,9 @@ FLOOR_REAL_TIME_FACTOR = 500.0
 def add_arguments(parser) -> None:
     parser.add_argument("--map", default="plant_floor", help="map (default: %(default)s)")
     parser.add_argument("--odometry", default="typical", choices=PRESETS)
-    parser.add_argument("--laps", type=float, default=2.0, help="route passes to replay (default: %(default)s)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--laps", type=number(0.0, low_open=True), default=2.0, help="route passes to replay (default: %(default)s)")
+    parser.add_argument("--repeats", type=number(1, integer=True), default=3, help="timed repeats, best kept (default: %(default)s)")
+    parser.add_argument("--seed", type=number(0, integer=True), default=0)
 
 
 def run(args) -> dict:

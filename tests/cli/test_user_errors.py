@@ -53,6 +53,9 @@ def target_png(tmp_path_factory):
     (["reproduce", "thesis", "--noise", "-1"], ["--noise", "'-1'", ">= 0"]),
     (["localize", "x.png", "--lens", "0"], ["--lens", "> 0 (mm)"]),
     (["map", "mounts", "plant_floor", "--route", "nope"], ["--route", "'nope'"]),
+    (["bench", "render", "--frames", "-1"], ["--frames", "'-1'", ">= 1"]),
+    (["bench", "localizer", "--repeats", "0"], ["--repeats", "'0'", ">= 1"]),
+    (["bench", "env", "--steps", "1.5"], ["--steps", "whole number"]),
     (["render", "--map", "plant_flor", "--pose", "1", "1", "0", "--out", "x.png"], ["did you mean 'plant_floor'"]),
 ])
 def test_a_bad_value_is_one_line_naming_the_flag(argv, needles, capfd, tmp_path, monkeypatch):
@@ -113,3 +116,20 @@ def test_render_writes_into_a_new_folder(tmp_path, capfd):
     out = tmp_path / "new" / "frame.png"
     rc, _, err = _run(["render", "--pose", "30", "4", "-1.5708", "--out", str(out), "--no-noise"], capfd)
     assert rc == 0 and out.is_file() and np.asarray(cv2.imread(str(out))).shape[:2] == (480, 512)
+
+
+def test_a_closed_pipe_ends_quietly(monkeypatch, capfd):
+    """``agvsim ... | head``: the reader goes away; no error line, no traceback."""
+    import agvsim.commands.reproduce as rep
+
+    def run(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(rep, "run", run)
+    try:
+        rc = main(["reproduce", "thesis"])
+    finally:
+        import sys
+        sys.stdout = sys.__stdout__
+    _, err = capfd.readouterr()
+    assert rc == 1 and "error" not in err and "Traceback" not in err
