@@ -79,8 +79,10 @@ def observation_label(index: int, observation: TargetObservation) -> str:
     """``"1: d=3.20 m  α=25.0°  β=-4.1°"``: how :func:`annotate` labels an observation (the
     units the rest of the tool reports: metres, degrees)."""
     o = observation
-    return (f"{index}: d={o.distance:.2f} m  α={math.degrees(o.alpha):.1f}°  "
-            f"β={math.degrees(o.beta):.1f}°")
+    def deg(x: float) -> str:  # one decimal, no "-0.0"
+        return f"{round(math.degrees(x), 1) + 0.0:.1f}°"
+
+    return f"{index}: d={o.distance:.2f} m  α={deg(o.alpha)}  β={deg(o.beta)}"
 
 
 def annotate(image: np.ndarray, observations: Sequence[TargetObservation], scale: float = 1.0,

@@ -139,7 +139,8 @@ def run(args) -> int:
                          for i in range(0, len(estimate), every))
         series["EKF estimate"] = estimate_error
         bound = 2.0 * np.sqrt(np.clip(run_log.covariance[:, 0, 0] + run_log.covariance[:, 1, 1], 0, None))
-    image = view.render(tuple(trajectories), vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses)
+    image = view.render(tuple(trajectories), vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses,
+                        ellipse_label="2σ position ellipse (x20)")
     topdown = TopDownView.save_png(image, out / "topdown.png")
     plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance, series,
                              title=f"{world_map.name}: position error, {args.odometry} odometry, seed {args.seed}",

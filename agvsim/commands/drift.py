@@ -94,6 +94,43 @@ def _job(args: dict):
     return args["seed"], run_log
 
 
+#: m of driving in all (distance x seeds) from which a run first prints an estimate of its time
+ESTIMATE_FROM_M = 1000.0
+#: m driven by the short drives that time it: a first (the process's one-time loads), then two
+#: whose difference is the pace
+CALIBRATION_M = (5.0, 10.0, 30.0)
+
+
+def _estimate(base: dict, seeds: list[int], workers: int) -> str:
+    """One line: about how long the run will take, from three short drives of the first seed
+    here. The pace (wall seconds per metre at cruising speed) is the difference of the last two
+    over the difference of their lengths, which leaves out what they share: a seed's start-up
+    (its renderer) and the vehicle's start from rest; the first drive carries what a worker
+    process does once (compiled code loaded)."""
+    times = []
+    for metres in CALIBRATION_M:
+        t0 = time.perf_counter()
+        _job({**base, "seed": seeds[0], "distance": metres, "queue": None})
+        times.append(time.perf_counter() - t0)
+    first, short, long = CALIBRATION_M
+    pace = max(times[2] - times[1], 0.0) / (long - short)
+    per_seed = max(times[1] - short * pace, 0.0)
+    once = max(times[0] - first * pace - per_seed, 0.0)
+    rounds = -(-len(seeds) // workers)  # seeds per worker, the busiest
+    total = once + rounds * (per_seed + base["distance"] * pace)
+    return (f"estimate: about {_duration(total)} ({pace * 1000:.0f} ms of wall time per metre per worker, "
+            f"timed on short drives here; the host's load changes it)")
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` for a person: ``40 s``, ``3 min``, ``2.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 5400:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
 def format_table(summary: dict, per_seed: list[dict]) -> str:
     """Per seed and all seeds: errors, consistency, and the filter's losses: ``lost`` (times it
     declared itself lost), ``lost s`` (simulated seconds spent lost), ``recov`` (recoveries:
@@ -127,8 +164,9 @@ def _plots(world_map, run_log, out: Path, title: str) -> dict:
                      for i in idx)
     image = view.render((Trajectory(run_log.true_pose, (30, 150, 40), "true"),
                          Trajectory(run_log.odometry_pose, (210, 40, 40), "dead reckoning"),
-                         Trajectory(run_log.estimate, (40, 60, 220), f"estimated (2σ ellipses x{scale:g})")),
-                        vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses)
+                         Trajectory(run_log.estimate, (40, 60, 220), "estimated")),
+                        vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses,
+                        ellipse_label=f"2σ position ellipse (x{scale:g})")
     topdown = TopDownView.save_png(image, out / "trajectories.png")
     err = np.hypot(*(run_log.estimate[:, :2] - run_log.true_pose[:, :2]).T)
     odo = np.hypot(*(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2]).T)
@@ -174,6 +212,8 @@ def run(args) -> int:
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
             "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
             "camera_mount": args.camera_mount, "backend": args.backend}
+    if args.distance * len(seeds) >= ESTIMATE_FROM_M:
+        log(_estimate(base, seeds, workers))
     bar = DistanceBar(args.distance * len(seeds), disable=args.no_progress)
     started = time.perf_counter()
     logs = {}

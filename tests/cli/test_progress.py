@@ -53,3 +53,23 @@ def test_drift_bar_log_and_a_short_run(tmp_path, capsys):
     n, total = re.findall(r"(\d+)/(\d+) m \[", captured.err)[-1]
     assert n == total == "3" and "s/m" not in captured.err
     assert "nan" not in captured.out and "no station reached" in captured.out
+
+
+def test_a_long_drift_prints_an_estimate_from_short_drives(monkeypatch):
+    """The estimate is timed, not assumed: with drives that cost 0.5 s once, 0.25 s per seed and
+    2 ms per metre, 20 seeds of 1000 m on 2 workers come to 0.5 + 10 x (0.25 + 2) = 23 s."""
+    import agvsim.commands.drift as drift
+
+    clock = [0.0]
+    loaded = [False]
+
+    def fake_job(args):
+        clock[0] += (0.0 if loaded[0] else 0.5) + 0.25 + 0.002 * args["distance"]
+        loaded[0] = True
+        return args["seed"], None
+
+    monkeypatch.setattr(drift, "_job", fake_job)
+    monkeypatch.setattr(drift.time, "perf_counter", lambda: clock[0])
+    line = drift._estimate({"distance": 1000.0}, list(range(20)), 2)
+    assert line.startswith("estimate: about 23 s (2 ms of wall time per metre per worker")
+    assert drift._duration(30) == "30 s" and drift._duration(600) == "10 min" and drift._duration(3 * 3600) == "3.0 h"
