@@ -32,5 +32,7 @@ def test_map_mounts_cli(capsys):
     assert main(["map", "mounts", "corridor", "--step", "1.0", "--top", "3", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert len(out["ranked"]) == 3 and out["recommended"]["mount"]["yaw"] == pytest.approx(math.radians(30.0))
-    assert main(["map", "mounts", "corridor", "--step", "0"]) == 2
-    assert "--step must be a finite number > 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:  # argparse: one line naming --step, exit status 2
+        main(["map", "mounts", "corridor", "--step", "0"])
+    assert info.value.code == 2
+    assert "--step: expected a finite number > 0 (m), got '0'" in capsys.readouterr().err
