@@ -383,7 +383,10 @@ def run(args) -> dict:
     with mp.get_context("spawn").Pool(args.workers) as pool:
         for n, r in enumerate(pool.imap_unordered(_run_trial, tasks), 1):
             results.append(r)
-            print(f"\r  {n}/{len(tasks)} trials ({time.perf_counter() - t0:.0f} s)", end="", file=sys.stderr, flush=True)
+            spent = time.perf_counter() - t0
+            left = spent / n * (len(tasks) - n)  # at the pace so far
+            print(f"\r  {n}/{len(tasks)} trials ({spent:.0f} s; about {left:.0f} s left)", end="", file=sys.stderr,
+                  flush=True)
     print(file=sys.stderr)
     return {"wall_s": time.perf_counter() - t0, "workers": args.workers, "summary": summarize(results),
             "trials": results}
