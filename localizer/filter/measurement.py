@@ -63,10 +63,42 @@ from localizer.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = [
-    "Measurement", "TargetMap", "ViewLimits", "measurement_jacobian",
+    "MAX_MEASUREMENT_SIGMA", "Measurement", "check_covariance", "informative", "TargetMap", "ViewLimits", "measurement_jacobian",
     "pose_from_measurement", "pose_from_measurement_jacobian", "predict_measurement",
     "predict_all",
 ]
+
+
+#: largest standard deviations (d m, β rad, α rad) of an observation the filter fuses: beyond
+#: them an observation says next to nothing (its χ² gate accepts almost any target) and the
+#: filter refuses it (counted, :meth:`~localizer.filter.ekf.PoseEKF.diagnostics`). The
+#: detector reports centimetres and milliradians; these are two orders of magnitude above.
+MAX_MEASUREMENT_SIGMA = (1.0, 0.5, 0.5)  # m, rad, rad
+
+
+def check_covariance(where: str, R) -> np.ndarray:
+    """``R`` (3, 3) as an array if it is finite, symmetric (to 1e-9 of its largest entry) and
+    positive semi-definite (smallest eigenvalue >= -1e-12 of the largest); else one ``ValueError``
+    naming ``where``, the value and the expectation."""
+    R = np.asarray(R, dtype=float)
+    ok = R.shape == (3, 3) and bool(np.isfinite(R).all())
+    if ok:
+        scale = float(np.abs(R).max())
+        ok = float(np.abs(R - R.T).max()) <= 1e-9 * scale
+        if ok and scale > 0.0:
+            ok = float(np.linalg.eigvalsh(0.5 * (R + R.T))[0]) >= -1e-12 * scale
+    if not ok:
+        raise ValueError(f"{where} must be a finite symmetric positive semi-definite (3, 3) covariance "
+                         f"(m², rad²), got {R.tolist()!r}")
+    return R
+
+
+def informative(R) -> bool:
+    """Whether a fused observation covariance ``R`` (3, 3) (floor included) is positive definite
+    with every standard deviation within :data:`MAX_MEASUREMENT_SIGMA`."""
+    from localizer.filter.update import is_positive_definite  # update imports this module
+    return (R.item(0, 0) <= MAX_MEASUREMENT_SIGMA[0] ** 2 and R.item(1, 1) <= MAX_MEASUREMENT_SIGMA[1] ** 2
+            and R.item(2, 2) <= MAX_MEASUREMENT_SIGMA[2] ** 2 and is_positive_definite(R))
 
 
 @dataclass(frozen=True)
@@ -173,8 +205,9 @@ class Measurement:
         R = np.array(self.R, dtype=float)
         if z.shape != (3,) or R.shape != (3, 3):
             raise ValueError(f"Measurement needs z (3,) and R (3, 3), got {z.shape}, {R.shape}")
-        if not (np.isfinite(z).all() and np.isfinite(R).all()) or z[0] <= 0:
-            raise ValueError(f"Measurement: z must be finite with d > 0 and R finite, got z={z}")
+        if not np.isfinite(z).all() or z[0] <= 0:
+            raise ValueError(f"Measurement.z must be finite (d m, β rad, α rad) with d > 0, got z={z}")
+        check_covariance("Measurement.R", R)
         object.__setattr__(self, "z", z)
         object.__setattr__(self, "R", 0.5 * (R + R.T))
 
@@ -182,8 +215,9 @@ class Measurement:
         """``Measurement(z, R + extra, polarity)`` for a finite ``extra`` (3, 3) covariance, without
         re-checking what this measurement already passed (z, shapes): the per-observation hot path."""
         R = self.R + extra
-        if R.shape != (3, 3) or not np.isfinite(R).all():
-            raise ValueError(f"Measurement.plus_noise: R + extra must be a finite (3, 3) matrix, got {R!r}")
+        if R.shape != (3, 3):
+            raise ValueError(f"Measurement.plus_noise: R + extra must be a (3, 3) matrix, got shape {R.shape}")
+        check_covariance("Measurement.plus_noise: R + extra", R)
         m = object.__new__(Measurement)
         object.__setattr__(m, "z", self.z.copy())
         object.__setattr__(m, "R", 0.5 * (R + R.T))

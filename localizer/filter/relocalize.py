@@ -16,7 +16,9 @@ Hypotheses outside the map's free space are dropped, as are those whose observat
 to match ``max_misses`` times (a single false detection does not kill the right one), and
 of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
 is kept. A match counts as evidence only while the hypothesis is precise (position σ within
-``confirm_sigma``): a loose gate accepts anything. At most
+``confirm_sigma``): a loose gate accepts anything; and only from an informative observation (one
+that alone places the vehicle within ``evidence_sigma``): a loose observation fits anything.
+Refusals are counted by reason (:attr:`Relocalizer.refusals`). At most
 ``max_hypotheses`` live (the best supported, then the newest), which bounds the cost per
 frame (about ``max_hypotheses`` associations).
 
@@ -39,7 +41,7 @@ import numpy as np
 from localizer.filter.association import ACCEPTED, GateConfig, associate
 from localizer.filter.measurement import (Measurement, TargetMap, pose_from_measurement,
                                           pose_from_measurement_jacobian)
-from localizer.filter.update import PoseKF, position_sigma, predict_pose, update_pose
+from localizer.filter.update import PoseKF, is_positive_definite, position_sigma, predict_pose, update_pose
 from localizer.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
@@ -61,7 +63,11 @@ class RelocalizeConfig:
         max_sigma: a hypothesis whose position σ (m, largest) grows past this is dropped (its
             gate would accept anything; while the wheels slip against a wall, fresh
             observations seed precise ones again).
-        confirm_sigma: position σ (m) a hypothesis must be within to be confirmed.
+        confirm_sigma: position σ (m) a hypothesis must be within to be confirmed (its covariance
+            finite and positive definite besides).
+        evidence_sigma: a match counts towards confirmation only when the observation alone
+            places the vehicle within this position σ (m, the largest of ``J R Jᵀ``): an
+            observation whose covariance is loose fits any hypothesis and tells none apart.
         view_margin: extra bearing (rad) on the gate's view margin when a hypothesis predicts
             which targets are in view (a target at the edge of the image must not count
             against the right hypothesis).
@@ -78,6 +84,7 @@ class RelocalizeConfig:
     bounds: tuple[float, float, float, float] | None = None  # m
     max_sigma: float = 1.0  # m
     confirm_sigma: float = 0.25  # m
+    evidence_sigma: float = 1.0  # m
     view_margin: float = math.radians(4.0)  # rad
     replay_frames: int = 60
 
@@ -87,7 +94,7 @@ class RelocalizeConfig:
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
         check_number("RelocalizeConfig.view_margin", self.view_margin, low=0.0, unit="rad")
-        for name in ("max_sigma", "confirm_sigma"):
+        for name in ("max_sigma", "confirm_sigma", "evidence_sigma"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=0.0, low_open=True, unit="m")
 
 
@@ -153,6 +160,11 @@ class Relocalizer:
         self.free_space = free_space  # (x m, y m) -> bool, or None
         self.hypotheses: list[Hypothesis] = []
         self._born = 0  # hypotheses made so far (their age order)
+        #: refusals by reason: ``uninformative_match`` (a match from an observation too loose to
+        #: be evidence), ``unsound_seed`` (a pairing whose pose covariance is not finite positive
+        #: definite), ``imprecise_confirmation`` (the best-supported hypothesis refused as
+        #: confirmed: covariance not positive definite or position σ above ``confirm_sigma``)
+        self.refusals: dict[str, int] = {}
 
     def reset(self) -> None:
         """Drop every hypothesis."""
@@ -187,9 +199,19 @@ class Relocalizer:
                     continue
                 J = pose_from_measurement_jacobian(m.z, self.targets.positions[j], self.targets.yaws[j],
                                                    self.mount)
-                P = J @ m.R @ J.T + np.diag([1e-6, 1e-6, 1e-8])
+                evidence = J @ m.R @ J.T
+                P = evidence + np.diag([1e-6, 1e-6, 1e-8])
+                if not is_positive_definite(P):
+                    self._refuse("unsound_seed")
+                    continue
                 self._born += 1
-                self.hypotheses.append(Hypothesis(x, P, {self.targets.ids[j]}, born=self._born))
+                # the seeding observation is the first match, when it is evidence (_evidence)
+                if position_sigma(evidence) <= self.config.evidence_sigma:
+                    matched = {self.targets.ids[j]}
+                else:
+                    matched = set()
+                    self._refuse("uninformative_match")
+                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born))
                 added += 1
         self._merge()
         return added
@@ -235,20 +257,24 @@ class Relocalizer:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self._gate)
             refused = 0
             # a match is evidence only when the gate was tight (a loose one accepts anything)
-            precise = evidence and h.position_sigma() <= self.config.confirm_sigma
+            precise = evidence and h.position_sigma() <= self.config.confirm_sigma and is_positive_definite(h.P)
             for a in assoc:
                 if a.status != ACCEPTED:
                     refused += 1
                     continue
                 m = measurements[a.observation]
-                update_pose(h.kf, m, self.targets.positions[a.target], self.targets.yaws[a.target], self.mount)
+                pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
+                update_pose(h.kf, m, pos, yaw, self.mount)
                 if precise:
-                    h.matched.add(a.target_id)
+                    if self._evidence(m, pos, yaw):
+                        h.matched.add(a.target_id)
+                    else:
+                        self._refuse("uninformative_match")
                 explained.add(a.observation)
             # misses: observations refused since the last frame it explained whole
             h.misses = h.misses + refused if refused else 0
             if (h.misses < self.config.max_misses and h.position_sigma() <= self.config.max_sigma
-                    and self._free(h.x)):
+                    and is_positive_definite(h.P) and self._free(h.x)):
                 alive.append(h)
         self.hypotheses = alive
         self._merge()
@@ -261,7 +287,20 @@ class Relocalizer:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
-        if (best >= self.config.confirm_targets and len(top) == 1
-                and top[0].position_sigma() <= self.config.confirm_sigma):
-            return top[0]
+        if best >= self.config.confirm_targets and len(top) == 1:
+            h = top[0]
+            P = h.P
+            if is_positive_definite(P) and float(np.linalg.eigvalsh(P[:2, :2])[-1]) <= self.config.confirm_sigma ** 2:
+                return h
+            self._refuse("imprecise_confirmation")
         return None
+
+    def _evidence(self, m: Measurement, target_position, target_yaw: float) -> bool:
+        """Whether ``m`` alone places the vehicle within ``evidence_sigma`` (position σ of
+        ``J R Jᵀ``, J the Jacobian of the pose it gives from the target)."""
+        J = pose_from_measurement_jacobian(m.z, target_position, target_yaw, self.mount)
+        sigma = position_sigma(J @ m.R @ J.T)
+        return sigma <= self.config.evidence_sigma  # False for nan
+
+    def _refuse(self, reason: str) -> None:
+        self.refusals[reason] = self.refusals.get(reason, 0) + 1
