@@ -65,16 +65,34 @@ from typing import Sequence
 
 import numpy as np
 
+from dataclasses import replace
+
 from localizer.filter.association import ACCEPTED, Association, associate
 from localizer.filter.config import FilterConfig
-from localizer.filter.measurement import Measurement, TargetMap
+from localizer.filter.measurement import Measurement, TargetMap, informative
 from localizer.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, Relocalizer
-from localizer.filter.update import PoseKF, position_sigma, predict_pose, update_pose
-from localizer.numeric import wrap_angle
+from localizer.filter.update import PoseKF, nis, position_sigma, predict_pose, update_pose
+from localizer.numeric import check_number, wrap_angle
 
-__all__ = ["FilterConfig", "FrameResult", "LOST", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING"]
+__all__ = ["FilterConfig", "FrameResult", "LOST", "MAX_HEADING_SIGMA", "MAX_ODOMETRY_STEP", "MAX_ODOMETRY_TURN",
+           "MAX_POSITION_SIGMA", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING", "UNINFORMATIVE"]
+
+#: largest |Δs| (m) of one odometry increment: a control step moves centimetres
+MAX_ODOMETRY_STEP = 10.0  # m
+#: largest |Δθ| (rad) of one odometry increment
+MAX_ODOMETRY_TURN = 2.0 * math.pi  # rad
+#: the covariance the filter represents is bounded: position σ beyond this (or a covariance not
+#: finite) is lost, and the covariance is set back to ``FilterConfig.lost_sigma``
+MAX_POSITION_SIGMA = 1.0e4  # m
+#: the same for the heading σ
+MAX_HEADING_SIGMA = 2.0 * math.pi  # rad
+#: the association status of an observation refused at the filter's boundary: its covariance
+#: (floor included) is not positive definite or a σ exceeds ``MAX_MEASUREMENT_SIGMA``
+UNINFORMATIVE = "uninformative"
+#: slack (s) on time stamps (the filter's frame times are rounded sums of control steps)
+_TIME_SLACK = 1e-9  # s
 
 TRACKING = "tracking"  # the estimate and its covariance are to be trusted
 LOST = "lost"  # the filter does not know where the vehicle is, and has no candidate pose
@@ -125,17 +143,12 @@ class PoseEKF:
 
     def __init__(self, x0, P0, targets: TargetMap, mount: CameraMount,
                  config: FilterConfig = FilterConfig(), t0: float = 0.0, free_space=None) -> None:
-        x0 = np.asarray(x0, dtype=float).reshape(-1)
-        P0 = np.asarray(P0, dtype=float)
-        if x0.shape != (3,) or not np.isfinite(x0).all():
-            raise ValueError(f"PoseEKF: x0 must be a finite (3,) pose, got {x0!r}")
-        if P0.shape != (3, 3) or not np.isfinite(P0).all() or np.any(np.linalg.eigvalsh(0.5 * (P0 + P0.T)) < 0):
-            raise ValueError(f"PoseEKF: P0 must be a finite positive semi-definite (3, 3) matrix, got {P0!r}")
+        x0, P0 = self._check_state("PoseEKF", x0, P0, ("x0", "P0"))
         self.targets = targets
         self.mount = mount
         self.config = config
-        self.kf = PoseKF(x0, 0.5 * (P0 + P0.T))
-        self.time = float(t0)  # s, time of the filter state
+        self.kf = PoseKF(x0, P0)
+        self.time = check_number("PoseEKF t0", t0, unit="s")  # s, time of the filter state
         self._pending: deque = deque()  # (t, ds, dθ) after self.time
         self._now = OdometryAccumulator(config.noise)
         self._slip = ContactSlip(config.contact_slip, config.noise.track_width)
@@ -150,6 +163,7 @@ class PoseEKF:
         self._misfits: list[tuple[float, float, float, str | None, int, int]] = []
         self._misfit_count = 0  # frames with misfitting detections so far
         self.rejections = 0  # observations not accepted, total
+        self._refusals: dict[str, int] = {}  # inputs refused at the boundary, by reason (diagnostics)
         self.relocalizations = 0
         self.lost_events = 0
         self.last_fix = float(t0)  # s: the last accepted update (or confirmed re-localization)
@@ -209,17 +223,54 @@ class PoseEKF:
     def add_odometry(self, t: float, ds: float, dtheta: float, in_contact: bool = False) -> None:
         """Queue the odometry increment (Δs m, Δθ rad) that ended at time ``t`` (s);
         ``in_contact``: the vehicle touched a wall or obstacle during it (its wheels may have
-        slipped: :attr:`FilterConfig.contact_slip`)."""
-        if self._pending and t < self._pending[-1][0]:
-            raise ValueError(f"odometry time stamps must not decrease: {t!r} after {self._pending[-1][0]!r}")
-        slip = self._slip.extra(ds, dtheta, in_contact, t)
-        self._pending.append((float(t), float(ds), float(dtheta), slip))
+        slipped: :attr:`FilterConfig.contact_slip`).
+
+        Raises ``ValueError`` (nothing queued, counted in :meth:`diagnostics`) for a time stamp
+        that is not finite or is before the last one (or the filter time), a Δs or Δθ that is not
+        finite or beyond :data:`MAX_ODOMETRY_STEP` / :data:`MAX_ODOMETRY_TURN`, an ``in_contact``
+        that is not a bool."""
+        try:
+            t = check_number("PoseEKF.add_odometry t", t, unit="s")
+        except ValueError:
+            self._refuse("odometry_time")
+            raise
+        last = self._pending[-1][0] if self._pending else self.time
+        if t < last - (0.0 if self._pending else _TIME_SLACK):
+            self._refuse("odometry_time")
+            raise ValueError(f"PoseEKF.add_odometry t must not decrease: got {t!r} after {last!r} (s)")
+        try:
+            ds = check_number("PoseEKF.add_odometry ds", ds, low=-MAX_ODOMETRY_STEP, high=MAX_ODOMETRY_STEP, unit="m")
+            dtheta = check_number("PoseEKF.add_odometry dtheta", dtheta, low=-MAX_ODOMETRY_TURN,
+                                  high=MAX_ODOMETRY_TURN, unit="rad")
+        except ValueError:
+            self._refuse("odometry_increment")
+            raise
+        if not isinstance(in_contact, (bool, np.bool_)):
+            self._refuse("odometry_contact")
+            raise ValueError(f"PoseEKF.add_odometry in_contact must be a bool, got {in_contact!r}")
+        # validated: from here on nothing raises, so nothing is half-applied
+        slip = self._slip.extra(ds, dtheta, bool(in_contact), t)
         self._now.add(ds, dtheta, slip)
+        self._pending.append((t, ds, dtheta, slip))
+
+    def _check_time(self, where: str, t) -> float:
+        """``t`` (s) finite and not before the filter time, or a ``ValueError`` (counted)."""
+        try:
+            t = check_number(where, t, unit="s")
+        except ValueError:
+            self._refuse("frame_time")
+            raise
+        if t < self.time - _TIME_SLACK:
+            self._refuse("frame_time")
+            raise ValueError(f"{where} must be >= the filter time {self.time!r} s (frames out of order?), got {t!r}")
+        return t
 
     def flush(self, t: float) -> None:
         """Predict the filter state to time ``t`` (s) with the queued increments up to ``t``."""
-        if t < self.time - 1e-9:
-            raise ValueError(f"cannot predict back in time: {t!r} < {self.time!r} (frames out of order?)")
+        t = self._check_time("PoseEKF.flush t", t)
+        self._flush(t)
+
+    def _flush(self, t: float) -> None:
         acc = OdometryAccumulator(self.config.noise)
         self._flush_entry = None
         while self._pending and self._pending[0][0] <= t + 1e-9:
@@ -239,6 +290,22 @@ class PoseEKF:
         self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         if self.lost:
             self.relocalizer.predict(u, Q)
+        self._bound_covariance()
+
+    def _bound_covariance(self) -> None:
+        """Lost is a state, not an ever-growing matrix: a covariance that is not finite, or whose
+        position σ exceeds :data:`MAX_POSITION_SIGMA` (heading σ :data:`MAX_HEADING_SIGMA`),
+        makes the filter lost and is set back to ``lost_sigma`` (counted: ``covariance_bound``)."""
+        P = self.kf.P
+        if (np.isfinite(P).all() and np.isfinite(self.kf.x).all()
+                and position_sigma(P) <= MAX_POSITION_SIGMA and P.item(2, 2) <= MAX_HEADING_SIGMA ** 2):
+            return
+        self._refuse("covariance_bound")
+        if not np.isfinite(self.kf.x).all():
+            self.kf.x = np.zeros((3, 1))
+        self.declare_lost(f"covariance beyond the representable bound (position sigma > {MAX_POSITION_SIGMA:g} m, "
+                          f"heading sigma > {MAX_HEADING_SIGMA:g} rad, or not finite)")
+        self.kf.P = np.diag(np.asarray(self.config.lost_sigma, dtype=float) ** 2)
 
     def _check_lost(self) -> None:
         if self.lost:
@@ -298,10 +365,26 @@ class PoseEKF:
         ``observations``: ``TargetObservation``\\ s or :class:`Measurement`\\ s (the
         measurement floor is added to their covariance here).
         """
-        self.flush(t_capture)
-        ms = [self.measurement(o) for o in observations]
+        t_capture = self._check_time("PoseEKF.process_frame t_capture", t_capture)
+        # every observation is validated before the state changes (nothing half-applied on error)
+        fused = []
+        for k, o in enumerate(observations):
+            try:
+                fused.append(self.measurement(o))
+            except ValueError as err:
+                self._refuse("measurement_invalid")
+                raise ValueError(f"PoseEKF.process_frame observations[{k}]: {err}") from None
+        # beyond the sane bounds an observation fits anything: refused (counted), the rest fused
+        keep = [k for k, m in enumerate(fused) if informative(m.R)]
+        refused = len(fused) - len(keep)
+        ms = fused if not refused else [fused[k] for k in keep]
+        if refused:
+            self._refusals["measurement_uninformative"] = self._refusals.get("measurement_uninformative", 0) + refused
+            self.rejections += refused
+        self._flush(t_capture)
         if self.lost:
-            return self._relocalize(t_capture, ms)
+            result = self._relocalize(t_capture, ms)
+            return self._with_refused(result, keep, len(fused)) if refused else result
         if ms:  # the frame's measurements join the motion this flush predicted (if any)
             if self._flush_entry is not None and self._history and self._history[-1] is self._flush_entry:
                 self._flush_entry[2] = ms
@@ -344,8 +427,41 @@ class PoseEKF:
             if confirmed is not None:
                 self._adopt(confirmed, t_capture)
                 relocalized = True
-        return FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, relocalized,
-                           len(self.relocalizer.hypotheses), self.status)
+        result = FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, relocalized,
+                             len(self.relocalizer.hypotheses), self.status)
+        return self._with_refused(result, keep, len(fused)) if refused else result
+
+    @staticmethod
+    def _with_refused(result: FrameResult, keep: list[int], n: int) -> FrameResult:
+        """``result`` with its associations indexed by the frame's observations, the refused ones
+        (:data:`UNINFORMATIVE`) included."""
+        assoc = {keep[a.observation]: replace(a, observation=keep[a.observation]) for a in result.associations}
+        full = tuple(assoc.get(k, Association(k, UNINFORMATIVE, -1, "", math.inf, math.inf, 0)) for k in range(n))
+        return replace(result, associations=full)
+
+    def _refuse(self, reason: str) -> None:
+        self._refusals[reason] = self._refusals.get(reason, 0) + 1
+
+    def diagnostics(self) -> dict:
+        """The filter's state for whoever watches it: ``status``, ``lost_reason``,
+        ``position_sigma`` (m) and ``heading_sigma`` (rad) of filterpy's ``P``, ``nis`` of
+        filterpy's last update (``y``, ``S``; nan before any), the counters ``rejections``,
+        ``relocalizations``, ``lost_events``, and ``refusals``: inputs refused, by reason
+        (``odometry_time``, ``odometry_increment``, ``odometry_contact``, ``frame_time``,
+        ``measurement_invalid``, ``measurement_uninformative``, ``covariance_bound``, and the
+        re-localizer's ``uninformative_match``, ``unsound_seed``, ``imprecise_confirmation``)."""
+        P = self.kf.P
+        refusals = dict(self._refusals)
+        for reason, n in self.relocalizer.refusals.items():
+            refusals[reason] = refusals.get(reason, 0) + n
+        try:
+            last_nis = nis(self.kf) if np.any(self.kf.S) else math.nan
+        except np.linalg.LinAlgError:
+            last_nis = math.nan
+        return {"status": self.status, "lost_reason": self.lost_reason, "time": self.time,
+                "position_sigma": position_sigma(P), "heading_sigma": math.sqrt(max(P.item(2, 2), 0.0)),
+                "nis": last_nis, "rejections": self.rejections, "relocalizations": self.relocalizations,
+                "lost_events": self.lost_events, "refusals": refusals}
 
     def _line_up(self, ms: list[Measurement]) -> None:
         """Place a frame's grossly misfitting detections in the map from the estimate and count
@@ -407,9 +523,25 @@ class PoseEKF:
         self.last_fix = float(t)
         self.relocalizer.reset()
 
+    @staticmethod
+    def _check_state(where: str, x, P, names: tuple[str, str] = ("x", "P")) -> tuple[np.ndarray, np.ndarray]:
+        """``x`` (3,) finite and ``P`` (3, 3) finite positive semi-definite with position σ within
+        :data:`MAX_POSITION_SIGMA` (P symmetrised), or one ``ValueError``."""
+        x = np.asarray(x, dtype=float).reshape(-1)
+        P = np.asarray(P, dtype=float)
+        if x.shape != (3,) or not np.isfinite(x).all():
+            raise ValueError(f"{where}: {names[0]} must be a finite (3,) pose (m, m, rad), got {x!r}")
+        if (P.shape != (3, 3) or not np.isfinite(P).all() or np.any(np.linalg.eigvalsh(0.5 * (P + P.T)) < 0)
+                or position_sigma(P) > MAX_POSITION_SIGMA or P.item(2, 2) > MAX_HEADING_SIGMA ** 2):
+            raise ValueError(f"{where}: {names[1]} must be a finite positive semi-definite (3, 3) matrix with position "
+                             f"sigma <= {MAX_POSITION_SIGMA:g} m and heading sigma <= {MAX_HEADING_SIGMA:g} rad, "
+                             f"got {P!r}")
+        return x, 0.5 * (P + P.T)
+
     def reset(self, x, P) -> None:
         """Set the filter state to ``x`` (3,), ``P`` (3, 3) at the current filter time; not lost."""
-        self.kf.x = np.asarray(x, dtype=float).reshape(3, 1).copy()
-        self.kf.P = np.asarray(P, dtype=float).copy()
+        x, P = self._check_state("PoseEKF.reset", x, P)
+        self.kf.x = x.reshape(3, 1).copy()
+        self.kf.P = P
         self._recovered(self.time)
 
