@@ -9,13 +9,20 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
+import reprlib
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from localizer.numeric import check_number
+
+#: Every number in a map lies within ±WORLD_LIMIT (m for lengths): a floor at most 20 km across.
+WORLD_LIMIT = 10_000.0
+#: Longest field path or shown value in an error message (characters).
+MESSAGE_PART_CHARS = 120
 
 #: Marks "no value to show" in an error message (a missing key).
 MISSING: Any = object()
@@ -48,23 +55,51 @@ class MapError(ValueError):
         super().__init__(self._format())
 
     def _format(self) -> str:
-        where = f"{self.file}: {self.path}" if self.path else self.file
+        """One line; the path and the value are shortened (a map may hold huge or hostile values)."""
+        path = _shorten(" ".join(self.path.split()))
+        where = f"{self.file}: {path}" if path else self.file
         details = []
         if self.value is not MISSING:
-            details.append(f"got {_plain(self.value)!r}")
+            details.append(f"got {short_repr(self.value)}")
         if self.expected:
             details.append(f"expected {self.expected}")
         suffix = f" ({'; '.join(details)})" if details else ""
-        return f"{where}: {self.problem}{suffix}"
+        return " ".join(f"{where}: {self.problem}{suffix}".split("\n"))
 
 
-def _plain(value: Any) -> Any:
-    """numpy values as plain Python, so messages show ``[1.0, 2.0]``, not ``array(...)``."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+def _shorten(text: str, limit: int = MESSAGE_PART_CHARS) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+class _ShortRepr(reprlib.Repr):
+    """reprlib with small limits; numpy values shown as plain Python (``[1.0, 2.0]``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxlevel, self.maxlist, self.maxtuple, self.maxdict = 3, 6, 6, 4
+        self.maxstring, self.maxother, self.maxlong = 60, 60, 40
+
+    def repr_int(self, x: int, level: int) -> str:
+        if x.bit_length() > 200:  # repr() of a huge int is slow (and refused past 4300 digits)
+            return f"<an integer of about {int(x.bit_length() * 0.30103) + 1} digits>"
+        return super().repr_int(x, level)
+
+    def repr_ndarray(self, x: np.ndarray, level: int) -> str:
+        return self.repr1(x.ravel()[:self.maxlist + 1].tolist() if x.ndim <= 1 else
+                          [row for row in x[:self.maxlist + 1].tolist()], level)
+
+    def repr_instance(self, x: Any, level: int) -> str:
+        if isinstance(x, np.generic):
+            return self.repr1(x.item(), level)
+        return super().repr_instance(x, level)
+
+
+_SHORT = _ShortRepr()
+
+
+def short_repr(value: Any) -> str:
+    """``repr(value)`` cut to about :data:`MESSAGE_PART_CHARS` characters, whatever its size."""
+    return _shorten(_SHORT.repr(value))
 
 
 @dataclass(frozen=True)
@@ -119,7 +154,7 @@ def mapping(ctx: Context, path: str, raw: Any, readers: Mapping[str, Reader],
 
 def unknown_key(ctx: Context, path: str, key: str, valid: Mapping[str, Any]) -> MapError:
     """A MapError for a typo'd key, suggesting the closest valid one."""
-    close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.6)
+    close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.6) if len(key) <= 100 else []
     hint = f", did you mean {close[0]!r}?" if close else ""
     return ctx.error(join(path, key), f"unknown key{hint}", key, f"one of {_listing(valid)}")
 
@@ -159,16 +194,25 @@ def number(ctx: Context, path: str, raw: Any, unit: str = "", *, positive: bool 
     kind = "a positive number" if positive else (
         "a number >= 0" if non_negative else "a finite number")
     expected = f"{kind}, {unit}" if unit else kind
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+        raise ctx.error(path, "wrong type", raw, expected)
+    limit = f"{WORLD_LIMIT:g}"
+    out_of_range = f"out of range: beyond ±{limit}" + (" m (a map is at most 20 km across)" if unit == "m" else "")
+    within = (f"a positive number <= {limit}" if positive else f"a number from 0 to {limit}" if non_negative
+              else f"a number from -{limit} to {limit}") + (f", {unit}" if unit else "")
+    if isinstance(raw, int) and abs(raw) > WORLD_LIMIT:  # (a huge int overflows float())
+        raise ctx.error(path, out_of_range, raw, within)
     try:
-        return check_number(path, raw, low=0.0 if (positive or non_negative) else None, low_open=positive)
+        value = check_number(path, raw, low=0.0 if (positive or non_negative) else None, low_open=positive)
     except ValueError:
-        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-            reason = "wrong type"
-        elif not math.isfinite(float(raw)):
+        if not math.isfinite(raw):
             reason = "not a finite number"
         else:
             reason = "must be positive" if positive else "must not be negative"
         raise ctx.error(path, reason, raw, expected) from None
+    if abs(value) > WORLD_LIMIT:
+        raise ctx.error(path, out_of_range, raw, within)
+    return value
 
 
 _ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
@@ -197,7 +241,7 @@ def choice(ctx: Context, path: str, raw: Any, options: tuple[str, ...]) -> str:
     if not isinstance(raw, str):
         raise ctx.error(path, "wrong type", raw, expected)
     if raw not in options:
-        close = difflib.get_close_matches(raw, options, n=1, cutoff=0.6)
+        close = difflib.get_close_matches(raw, options, n=1, cutoff=0.6) if len(raw) <= 100 else []
         hint = f", did you mean {close[0]!r}?" if close else ""
         raise ctx.error(path, f"not a valid choice{hint}", raw, expected)
     return raw
@@ -205,14 +249,14 @@ def choice(ctx: Context, path: str, raw: Any, options: tuple[str, ...]) -> str:
 
 def point(ctx: Context, path: str, raw: Any, unit: str = "m") -> np.ndarray:
     """``[x, y]`` -> ``(2,)`` float array."""
-    return vector(ctx, path, raw, 2, f"[x, y] in {unit}")
+    return vector(ctx, path, raw, 2, f"[x, y] in {unit}", unit)
 
 
-def vector(ctx: Context, path: str, raw: Any, size: int, what: str) -> np.ndarray:
-    """A list of exactly ``size`` finite numbers."""
+def vector(ctx: Context, path: str, raw: Any, size: int, what: str, unit: str = "") -> np.ndarray:
+    """A list of exactly ``size`` finite numbers (each in ``unit`` if given)."""
     if not isinstance(raw, list) or len(raw) != size:
         raise ctx.error(path, "wrong shape", raw, what)
-    return np.array([number(ctx, join(path, i), v) for i, v in enumerate(raw)], dtype=float)
+    return np.array([number(ctx, join(path, i), v, unit) for i, v in enumerate(raw)], dtype=float)
 
 
 def points(ctx: Context, path: str, raw: Any, min_len: int, what: str) -> np.ndarray:
@@ -229,62 +273,67 @@ def readonly(array: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------- YAML
 
-def parse_yaml(ctx: Context, source_text: str) -> Any:
-    """Parse YAML text; duplicate keys and syntax errors become MapErrors.
+def parse_yaml(ctx: Context, source_text: str | bytes) -> Any:
+    """Parse a map's YAML text (str, or UTF-8 bytes) within the limits of
+    :mod:`agvsim.world.yamlread` (size, depth, aliases); every problem is a
+    one-line MapError naming the file and the line.
 
-    Uses a safe loader that also reads ``1e-3`` as a float (PyYAML alone
-    reads exponents without a dot as strings).
+    Duplicate keys are refused; ``1e-3`` reads as a float (PyYAML alone reads
+    exponents without a dot as strings); merge keys ``<<:`` are supported.
     """
     import yaml
 
-    loader_cls = _strict_loader(yaml)
+    from agvsim.world import yamlread
+
+    size = len(source_text)
+    if size > yamlread.MAX_MAP_BYTES:
+        raise ctx.error("", f"file too large ({size} bytes)",
+                        expected=f"a map file of at most {yamlread.MAX_MAP_BYTES} bytes (MAX_MAP_BYTES)")
+    if isinstance(source_text, bytes):
+        source_text = decode_text(ctx, source_text)
     try:
-        return yaml.load(source_text, Loader=loader_cls)  # noqa: S506 - a SafeLoader subclass
-    except _DuplicateKey as exc:
-        raise ctx.error(f"line {exc.line}", "duplicate key", exc.key,
-                        "each key once per mapping") from None
+        return yamlread.read_yaml(source_text)
+    except yamlread.YamlLimit as exc:
+        where = f"line {exc.line}" if exc.line is not None else ""
+        value = MISSING if exc.value is None else exc.value
+        raise ctx.error(where, exc.problem, value, exc.expected) from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise ctx.error(where, f"invalid YAML: {problem}") from None
+        raise ctx.error(*_yaml_problem(exc)) from None
 
 
-class _DuplicateKey(Exception):
-    def __init__(self, key: Any, line: int) -> None:
-        super().__init__(key)
-        self.key = key
-        self.line = line
+def read_map_file(ctx: Context, path: os.PathLike) -> bytes:
+    """A map file's bytes, refused past ``MAX_MAP_BYTES`` before reading them all."""
+    from agvsim.world.yamlread import MAX_MAP_BYTES
+
+    with open(path, "rb") as stream:
+        data = stream.read(MAX_MAP_BYTES + 1)
+    if len(data) > MAX_MAP_BYTES:
+        size = os.path.getsize(path)
+        raise ctx.error("", f"file too large ({size if size > MAX_MAP_BYTES else 'over ' + str(MAX_MAP_BYTES)} bytes)",
+                        expected=f"a map file of at most {MAX_MAP_BYTES} bytes (MAX_MAP_BYTES)")
+    return data
 
 
-_FLOAT = re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-    |\.[0-9_]+(?:[eE][-+][0-9]+)?
-    |[-+]?\.(?:inf|Inf|INF)
-    |\.(?:nan|NaN|NAN))$""", re.X)
+def decode_text(ctx: Context, data: bytes) -> str:
+    """A map file's bytes as text: UTF-8 (a UTF-8 byte-order mark is allowed)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise ctx.error("", "not UTF-8: the file starts with a UTF-16 byte-order mark",
+                        expected="a YAML text file saved as UTF-8")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        bad = data[exc.start:exc.start + 1]
+        raise ctx.error("", f"not a UTF-8 text file: byte 0x{bad.hex()} at offset {exc.start}",
+                        expected="a YAML text file saved as UTF-8") from None
 
 
-def _strict_loader(yaml):
-    """A SafeLoader subclass rejecting duplicate keys and reading 1e-3 as a float."""
-
-    class StrictLoader(yaml.SafeLoader):
-        def construct_mapping(self, node, deep=False):
-            seen = set()
-            for key_node, _ in node.value:
-                key = self.construct_object(key_node, deep=deep)
-                try:
-                    duplicate = key in seen
-                except TypeError:  # unhashable key; the base class reports it
-                    break
-                if duplicate:
-                    raise _DuplicateKey(key, key_node.start_mark.line + 1)
-                seen.add(key)
-            return super().construct_mapping(node, deep=deep)
-
-    StrictLoader.yaml_implicit_resolvers = {
-        k: [r for r in v if r[0] != "tag:yaml.org,2002:float"]
-        for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
-    }
-    StrictLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT,
-                                       list("-+0123456789."))
-    return StrictLoader
+def _yaml_problem(exc: Exception) -> tuple[str, str]:
+    """(where, problem) of a PyYAML error, on one line."""
+    mark = getattr(exc, "problem_mark", None)
+    where = f"line {mark.line + 1}" if mark is not None else ""
+    if getattr(exc, "character", None) is not None and getattr(exc, "reason", None):  # a ReaderError
+        char = exc.character
+        code = ord(char) if isinstance(char, str) else char
+        return "", f"not a text file: character 0x{code:02x} at offset {exc.position} ({exc.reason})"
+    problem = getattr(exc, "problem", None) or str(exc)
+    return where, "invalid YAML: " + " ".join(str(problem).split())

@@ -37,8 +37,9 @@ def load_map(name_or_path: str | os.PathLike) -> Map:
     """
     path = resolve_map_path(name_or_path)
     ctx = f.Context(str(path))
-    data = f.parse_yaml(ctx, path.read_text(encoding="utf-8"))
+    data = f.parse_yaml(ctx, f.read_map_file(ctx, path))
     return _build(ctx, data, default_name=path.stem, source=path)
+
 
 
 def map_from_dict(data: Any, *, name: str = "map", source: str | None = None) -> Map:
@@ -142,7 +143,7 @@ def _center(ctx, path, raw):
 
 @f.expects("[w, d]: positive sizes in m along the box's own x and y")
 def _size(ctx, path, raw):
-    size = f.vector(ctx, path, raw, 2, "[w, d] in m")
+    size = f.vector(ctx, path, raw, 2, "[w, d] in m", "m")
     for i, v in enumerate(size):
         if v <= 0.0:
             raise ctx.error(f.join(path, i), "must be positive", raw[i], "a positive size, m")
@@ -251,7 +252,7 @@ def _build(ctx: f.Context, data: Any, *, default_name: str, source: Path | None)
         lighting_default=lighting_default,
         lighting_zones=zones,
         targets=targets,
-        bounds=_bounds(walls, obstacles),
+        bounds=_bounds(ctx, walls, obstacles),
         camera_mount=top.get("camera_mount", CameraMount()),
     )
     checks.check_map(ctx, world)
@@ -425,8 +426,18 @@ def _make_target(ctx: f.Context, path: str, t: dict[str, Any], walls: tuple[Wall
                      normal=f.readonly(normal))
 
 
-def _bounds(walls, obstacles) -> tuple[float, float, float, float]:
-    """xmin, ymin, xmax, ymax (m) over walls (with thickness) and obstacles."""
+def _bounds(ctx: f.Context, walls, obstacles) -> tuple[float, float, float, float]:
+    """xmin, ymin, xmax, ymax (m) over walls (with thickness) and obstacles, each
+    within ±:data:`~agvsim.world.fields.WORLD_LIMIT` (a MapError naming the item otherwise)."""
+    limit = f.WORLD_LIMIT
+    items = [(f"walls[{i}]", w.points, 0.5 * w.thickness) for i, w in enumerate(walls)]
+    items += [(f"obstacles[{i}]", o.polygon, 0.0) for i, o in enumerate(obstacles)]
+    for path, pts, pad in items:
+        reach = float(np.abs(pts).max()) + pad
+        if reach > limit:
+            raise ctx.error(path, f"reaches {reach:.1f} m from the origin, beyond the map's ±{limit:g} m",
+                            expected=f"walls and obstacles within ±{limit:g} m of the origin (a map is at most "
+                            f"{2 * limit / 1000:g} km across)")
     lo = [w.points.min(axis=0) - 0.5 * w.thickness for w in walls]
     hi = [w.points.max(axis=0) + 0.5 * w.thickness for w in walls]
     lo += [o.polygon.min(axis=0) for o in obstacles]
