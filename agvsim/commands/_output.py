@@ -92,6 +92,10 @@ class DistanceBar:
         self.bar.refresh()
         self.bar.close()
 
+    def close(self) -> None:
+        """Close the bar where it stands (an interrupted run)."""
+        self.bar.close()
+
 
 def emit_json(obj: dict[str, Any]) -> None:
     """Print ``obj`` as one JSON object on stdout (NaN/inf become null)."""

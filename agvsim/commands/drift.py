@@ -7,6 +7,11 @@ consistency, dead-reckoning drift, association counts, the filter's losses
 (times lost, seconds lost, recoveries by re-localization) and station
 arrival errors. Plots (trajectories with covariance ellipses,
 error against distance with the 2σ bound) are made for the median seed.
+
+Each seed is saved to ``--out`` the moment it finishes (atomically:
+:mod:`agvsim.commands.run_folder`). Ctrl-C stops with one line saying what
+finished; the same command resumes, skipping finished seeds; ``--restart``
+starts over. A long run prints an estimate of its time first.
 """
 from __future__ import annotations
 
@@ -14,10 +19,12 @@ import math
 import os
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from localizer.numeric import check_number
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log, plural
+from agvsim.commands.run_folder import RunFolder, atomic_write
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
@@ -49,6 +56,9 @@ def register(sub) -> None:
                    help="parallel worker processes, at least 1 (default: the local cores)")
     p.add_argument("--out", type=Path, default=Path("out/drift"), help="output folder (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="skip the plots")
+    p.add_argument("--restart", action="store_true",
+                   help="start over: delete the seeds an earlier run left in --out (by default the same "
+                        "command resumes, skipping the seeds already finished there)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_mount_flag(p)
     add_json_flag(p)
@@ -167,22 +177,99 @@ def _plots(world_map, run_log, out: Path, title: str) -> dict:
                          Trajectory(run_log.estimate, (40, 60, 220), "estimated")),
                         vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses,
                         ellipse_label=f"2σ position ellipse (x{scale:g})")
-    topdown = TopDownView.save_png(image, out / "trajectories.png")
+    with atomic_write(out / "trajectories.png") as tmp:
+        TopDownView.save_png(image, tmp)
+    topdown = out / "trajectories.png"
     err = np.hypot(*(run_log.estimate[:, :2] - run_log.true_pose[:, :2]).T)
     odo = np.hypot(*(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2]).T)
     bound = 2.0 * np.sqrt(np.linalg.eigvalsh(run_log.covariance[:, :2, :2])[:, -1])
-    plot = error_vs_distance(out / "error_vs_distance.png", run_log.distance, {"estimate (EKF)": err},
-                             title=title, bound=bound)
-    plot_dr = error_vs_distance(out / "error_vs_distance_with_dead_reckoning.png", run_log.distance,
-                                {"estimate (EKF)": err, "dead reckoning": odo}, title=title)
+    plot, plot_dr = out / "error_vs_distance.png", out / "error_vs_distance_with_dead_reckoning.png"
+    with atomic_write(plot) as tmp:
+        error_vs_distance(tmp, run_log.distance, {"estimate (EKF)": err}, title=title, bound=bound)
+    with atomic_write(plot_dr) as tmp:
+        error_vs_distance(tmp, run_log.distance, {"estimate (EKF)": err, "dead reckoning": odo}, title=title)
     return {"trajectories": str(topdown), "error_plot": str(plot), "error_plot_with_dead_reckoning": str(plot_dr)}
 
 
-def run(args) -> int:
+_PROGRESS = None  # a worker's progress queue (set by _worker_init)
+
+
+def _worker_init(queue) -> None:
+    """A pool worker: progress to ``queue``; Ctrl-C is the parent's to handle (no traceback per
+    worker); on Linux the worker dies with its parent (no orphan computing on)."""
+    import signal
+
+    global _PROGRESS
+    _PROGRESS = queue
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
     import multiprocessing as mp
+    import os
 
-    import numpy as np
+    parent = mp.parent_process()
+    if parent is not None and os.getppid() != parent.pid:  # the parent died before the line above
+        os._exit(1)
 
+
+def _pool_job(args: dict):
+    return _job({**args, "queue": _PROGRESS})
+
+
+def _run_seeds(base: dict, seeds: list[int], workers: int, finished, bar) -> None:
+    """Drive ``seeds`` (in this process, or on a pool of ``workers`` spawned processes), calling
+    ``finished(seed, run_log)`` as each ends and advancing ``bar`` by the metres driven."""
+    import multiprocessing as mp
+    import queue as queue_mod
+
+    if not seeds:
+        return
+    if workers == 1:
+        class _Q:
+            def put(self, v):
+                bar.add(v)
+        for seed in seeds:
+            finished(*_job({**base, "seed": seed, "queue": _Q()}))
+        return
+    ctx = mp.get_context("spawn")
+    progress = ctx.Queue()
+    pool = ctx.Pool(min(workers, len(seeds)), initializer=_worker_init, initargs=(progress,))
+    try:
+        results = pool.imap_unordered(_pool_job, [{**base, "seed": s} for s in seeds])
+        for _ in seeds:
+            while True:
+                try:
+                    seed, run_log = results.next(timeout=0.5)
+                    break
+                except mp.TimeoutError:
+                    pass
+                finally:
+                    try:
+                        while True:
+                            bar.add(progress.get_nowait())
+                    except queue_mod.Empty:
+                        pass
+            finished(seed, run_log)
+        pool.close()
+    except BaseException:
+        pool.terminate()  # (Ctrl-C, or a seed's error: the workers stop now)
+        raise
+    finally:
+        pool.join()
+
+
+def _mount_record(mount):
+    """A camera mount as JSON-ready data (None: the map's)."""
+    from dataclasses import asdict, is_dataclass
+
+    return asdict(mount) if is_dataclass(mount) else (None if mount is None else repr(mount))
+
+
+def run(args) -> int:
     from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
     from agvsim.sensors.rendered import RenderedSource
     from agvsim.world import load_map
@@ -212,58 +299,44 @@ def run(args) -> int:
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
             "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
             "camera_mount": args.camera_mount, "backend": args.backend}
-    if args.distance * len(seeds) >= ESTIMATE_FROM_M:
-        log(_estimate(base, seeds, workers))
+    folder = RunFolder(args.out, _json_ready({**base, "camera_mount": _mount_record(args.camera_mount)}),
+                       restart=args.restart)
+    out = folder.out
+    done = folder.finished(seeds)
+    pending = [s for s in seeds if s not in done]
+    if done:
+        log(f"resuming: {plural(len(done), 'seed')} of {len(seeds)} already finished in {out} (not run again; "
+            "--restart to start over)")
+    if pending and args.distance * len(pending) >= ESTIMATE_FROM_M:
+        log(_estimate(base, pending, min(workers, len(pending))))
     bar = DistanceBar(args.distance * len(seeds), disable=args.no_progress)
+    bar.add(round(args.distance * len(done)))
     started = time.perf_counter()
-    logs = {}
-    out = Path(args.out)
-    (out / "seeds").mkdir(parents=True, exist_ok=True)
+    logs = {seed: log_ for seed, (_, log_) in done.items()}
+    metrics = {seed: m for seed, (m, _) in done.items()}
 
     def finished(seed, run_log) -> None:
-        # each seed's figures are saved as soon as it finishes, so a long run that is cut short
-        # still leaves its completed seeds behind
-        import json
-
-        logs[seed] = run_log
+        # each seed is saved the moment it finishes (atomically), so a run cut short keeps it
+        # and the same command resumes after it
         m = run_metrics(run_log)
         m["seed"] = seed
-        (out / "seeds" / f"seed_{seed:03d}.json").write_text(json.dumps(_json_ready(m), indent=1))
-        np.savez_compressed(out / "seeds" / f"seed_{seed:03d}.npz", **_arrays(run_log))
+        folder.save_seed(seed, _json_ready(m), _arrays(run_log))
+        logs[seed] = SimpleNamespace(**_arrays(run_log))  # (what the summary and plots read)
+        metrics[seed] = m
 
-    if workers == 1:
-        class _Q:
-            def put(self, v):
-                bar.add(v)
-        for seed in seeds:
-            finished(*_job({**base, "seed": seed, "queue": _Q()}))
-    else:
-        ctx = mp.get_context("spawn")
-        with ctx.Manager() as manager:
-            queue = manager.Queue()
-            with ctx.Pool(workers) as pool:
-                results = pool.imap_unordered(_job, [{**base, "seed": s, "queue": queue} for s in seeds])
-                done = 0
-                while done < len(seeds):
-                    try:
-                        seed, run_log = results.next(timeout=0.5)
-                    except mp.TimeoutError:
-                        pass
-                    else:
-                        finished(seed, run_log)
-                        done += 1
-                    try:
-                        while True:
-                            bar.add(queue.get_nowait())
-                    except Exception:
-                        pass
+    try:
+        _run_seeds(base, pending, workers, finished, bar)
+    except KeyboardInterrupt:
+        bar.close()
+        left = [s for s in seeds if s not in logs]
+        log(f"agvsim drift: interrupted; {len(seeds) - len(left)} of {len(seeds)} seeds finished and saved in "
+            f"{out}; run the same command to resume ({plural(len(left), 'seed')} to go)")
+        return 130
     bar.finish()
     wall = time.perf_counter() - started
     per_seed = []
     for s in seeds:
-        m = run_metrics(logs[s])
-        m["seed"] = s
-        per_seed.append(m)
+        per_seed.append(metrics[s])
     summary = summarize(per_seed, pooled([logs[s] for s in seeds]))
     floors = floors_met(summary)
     order = sorted(per_seed, key=lambda m: m["position_rmse_m"])
@@ -288,9 +361,7 @@ def run(args) -> int:
         "per_seed": per_seed,
         "files": files,
     }
-    import json
-
-    (out / "drift.json").write_text(json.dumps(_json_ready(result), indent=2))
+    folder.write_json("drift.json", _json_ready(result))
     if args.json:
         emit_json(result)
     else:

@@ -113,7 +113,7 @@ def test_drift_cli_json(tmp_path, capsys):
     assert out["seeds"] == [0, 1] and out["observations"] == "geometric"
     assert (tmp_path / "trajectories.png").exists() and (tmp_path / "error_vs_distance.png").exists()
     rc = main(["drift", "--map", "corridor", "--no-vision", "--distance", "20", "--seeds", "1", "--workers", "1",
-               "--no-progress", "--no-plots", "--out", str(tmp_path), "--json"])
+               "--no-progress", "--no-plots", "--out", str(tmp_path / "no_vision"), "--json"])
     assert rc == 0
     assert json.loads(capsys.readouterr().out)["vision"] is False
     with pytest.raises(SystemExit) as info:  # argparse: one line naming --seeds, exit status 2
