@@ -56,6 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args([a for a in argv if a != "--debug"])
     try:
         return int(args.func(args) or 0)
+    except KeyboardInterrupt:  # Ctrl-C in a command that keeps nothing to resume
+        print(f"agvsim {args.command}: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # the reader went away (``agvsim ... | head``): nothing more to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1

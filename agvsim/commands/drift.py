@@ -29,6 +29,8 @@ from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
 DEFAULT_MAP = "plant_floor"
+MAX_CAMERA_RATE = 100.0  # Hz: the physics rate (SimConfig.physics_rate); a faster camera has no new pose to see
+MAX_LATENCY = 5.0  # s: capture to fusion; longer and the frames arrive after the motion they describe is long past
 
 
 def register(sub) -> None:
@@ -41,8 +43,8 @@ def register(sub) -> None:
     p.add_argument("--first-seed", type=number(0, integer=True), default=0, help="first seed (default: %(default)s)")
     p.add_argument("--odometry", default="typical", choices=PRESETS,
                    help="odometry error preset (default: %(default)s)")
-    p.add_argument("--camera-rate", type=number(0.0, low_open=True, unit="Hz"), default=4.0, help="camera frames per second (default: %(default)s)")
-    p.add_argument("--latency", type=number(0.0, unit="s"), default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
+    p.add_argument("--camera-rate", type=number(0.0, MAX_CAMERA_RATE, low_open=True, unit="Hz"), default=4.0, help="camera frames per second (default: %(default)s)")
+    p.add_argument("--latency", type=number(0.0, MAX_LATENCY, unit="s"), default=0.25, help="capture-to-fusion delay, s (default: %(default)s)")
     p.add_argument("--no-vision", action="store_true", help="dead reckoning only (the contrast run)")
     add_backend_flag(p)
     p.add_argument("--observations", default="rendered", choices=SOURCES,

@@ -7,6 +7,9 @@ from agvsim.commands._args import add_backend_flag, check_pose_on_map, image_wri
 from agvsim.commands._output import add_json_flag, clean_json, emit_json, log
 
 
+MAX_DEFOCUS_PX = 50.0  # px, blur sigma: beyond it no target survives, and the kernel grows with it
+
+
 def _lighting(text: str):
     try:
         return float(text)
@@ -39,7 +42,7 @@ def register(sub) -> None:
     p.add_argument("--camera-height", type=number(0.0, low_open=True, unit="m"), default=1.2, metavar="M",
                    help="lens height above the floor for forward/left/right, m (default 1.2)")
     p.add_argument("--exposure", type=number(0.0, low_open=True), default=1.0, help="relative exposure (default 1)")
-    p.add_argument("--defocus", type=number(0.0, unit="px"), default=0.0, metavar="PX", help="optical blur sigma, px (default 0)")
+    p.add_argument("--defocus", type=number(0.0, MAX_DEFOCUS_PX, unit="px"), default=0.0, metavar="PX", help="optical blur sigma, px (default 0)")
     p.add_argument("--focus", type=number(0.0, low_open=True, unit="m"), default=None, metavar="M",
                    help="focus distance (m): thin-lens defocus grows away from it (default: all in focus)")
     p.add_argument("--velocity", type=number(), nargs=2, default=(0.0, 0.0), metavar=("V", "OMEGA"),
@@ -63,6 +66,9 @@ def render_frame(args: argparse.Namespace) -> dict:
 
     world_map = load_map(args.map)
     pose = check_pose_on_map(world_map, args.pose)
+    if not world_map.is_free(pose[0], pose[1]):
+        log(f"agvsim render: warning: --pose {pose[0]:g} {pose[1]:g}: inside a wall or an obstacle of map "
+            f"{world_map.name!r} (the frame shows it from inside)")
     out = image_writer(args.out, "--out")  # (before the work: a name OpenCV cannot write fails at once)
     try:
         mount = parse_mount(args.mount, height=args.camera_height) or world_map.camera_mount

@@ -53,6 +53,9 @@ def target_png(tmp_path_factory):
     (["reproduce", "thesis", "--noise", "-1"], ["--noise", "'-1'", ">= 0"]),
     (["localize", "x.png", "--lens", "0"], ["--lens", "> 0 (mm)"]),
     (["map", "mounts", "plant_floor", "--route", "nope"], ["--route", "'nope'"]),
+    (["drift", "--camera-rate", "1e6"], ["--camera-rate", "<= 100 (Hz)"]),
+    (["drift", "--latency", "1e9"], ["--latency", "<= 5 (s)"]),
+    (["render", "--pose", "30", "4", "0", "--defocus", "1e6", "--out", "x.png"], ["--defocus", "<= 50 (px)"]),
     (["bench", "render", "--frames", "-1"], ["--frames", "'-1'", ">= 1"]),
     (["bench", "localizer", "--repeats", "0"], ["--repeats", "'0'", ">= 1"]),
     (["bench", "env", "--steps", "1.5"], ["--steps", "whole number"]),
@@ -133,3 +136,14 @@ def test_a_closed_pipe_ends_quietly(monkeypatch, capfd):
         sys.stdout = sys.__stdout__
     _, err = capfd.readouterr()
     assert rc == 1 and "error" not in err and "Traceback" not in err
+
+
+def test_a_pose_inside_an_obstacle_is_warned_about(tmp_path, capfd):
+    from agvsim.world import load_map
+
+    m = load_map("plant_floor")
+    ob = m.obstacles[0]
+    x, y = (float(v) for v in np.mean(np.asarray(ob.polygon), axis=0))
+    assert not m.is_free(x, y)
+    rc, _, err = _run(["render", "--pose", str(x), str(y), "0", "--no-noise", "--out", str(tmp_path / "f.png")], capfd)
+    assert rc == 0 and "warning: --pose" in err and "inside a wall or an obstacle" in err
