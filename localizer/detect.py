@@ -110,6 +110,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
             st.reject("pose")
             continue
         out.append(obs)
+    out = _drop_shared_bars(out, st)
     st.accepted += len(out)
     st.seconds += time.perf_counter() - t0
     if p.debug_dir:
@@ -117,6 +118,39 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
 
         write_debug_images(p.debug_dir, img, camera, p, stacks, verified, out)
     return out
+
+
+def _drop_shared_bars(found: list[TargetObservation], st: DetectionStats) -> list[TargetObservation]:
+    """``found`` without every observation whose bars overlap another's (counted as
+    ``st.rejected["shared_bars"]``).
+
+    A target's bars belong to one target only: two printed targets never overlap in the
+    image (their active areas, bar 1 to bar 2 over the rows of the stack, are apart by at
+    least two margins). When two candidates overlap, at least one is false, and which one
+    cannot be told from its fit: in a row of equal bars every neighbouring pair fits a
+    target equally well (and a true target with an equal bar at the pitch next to it is no
+    longer distinguishable from such a row). So both are dropped rather than the better fit
+    kept: a lost frame costs the filter one update, a false target a wrong one."""
+    n = len(found)
+    if n < 2:
+        return found
+    box = []
+    for o in found:
+        m = o.measurements
+        box.append((m.rows[0], m.rows[1], min(m.edges_x), max(m.edges_x)))
+    bad = [False] * n
+    for i in range(n):
+        r0, r1, x0, x1 = box[i]
+        for j in range(i + 1, n):
+            s0, s1, y0, y1 = box[j]
+            if r0 <= s1 and s0 <= r1 and x0 < y1 and y0 < x1:
+                bad[i] = bad[j] = True
+    if not any(bad):
+        return found
+    for b in bad:
+        if b:
+            st.reject("shared_bars")
+    return [o for o, b in zip(found, bad) if not b]
 
 
 def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorParams, refine: bool = True):

@@ -21,6 +21,7 @@ import numpy as np
 
 from localizer.camera import Camera
 from localizer.geometry import TargetPose, bar_edges_u
+from localizer.numeric import check_number
 from localizer.target import TargetSpec
 
 SUBSAMPLES = 16  # column samples per pixel for slanted edges
@@ -284,6 +285,72 @@ def adversarial_frames(camera: Camera, rng: np.random.Generator) -> dict[str, np
     out["white"] = np.full((h, w), 255, np.uint8)
     del cv2
     return out
+
+
+#: the grid of :func:`equal_bar_rows`: bars in a row, bar widths (px), gap minus bar width
+#: (px; the run test undoes up to ``max_edge_shift`` = 1 px of dark-side shift on each edge, so
+#: 5 px bars with 9-10 px gaps pass as a blurred target), height / (2.5 x mean run) (a facing
+#: target is ~2.5 mean runs tall on the thesis camera), (dark, bright) grey levels
+EQUAL_BAR_GRID = ((3, 4, 6), (3, 4, 5, 6, 8, 10, 12), (0, 1, 2, 3, 4, 5), (0.8, 1.0, 1.3),
+                  ((24, 172), (60, 200), (0, 255), (90, 150)))
+
+
+def equal_bar_frame(camera: Camera, n: int, width: int, pitch: int, height: int, dark: int = 24,
+                    bright: int = 172, positive: bool = True, x0: int = 150, y0: int = 200) -> np.ndarray:
+    """A uint8 ``camera.shape`` frame of ``n`` equal bars ``width`` px wide at a ``pitch`` px
+    pitch, ``height`` rows tall from row ``y0`` and column ``x0``, exact pixels: grey ``dark``
+    on ``bright`` (``positive``) or the reverse. No target: every neighbouring pair of bars
+    looks like one, but a target's bars have a half-bar margin beyond them, not a third bar
+    (issue 18: 4 bars 5 px wide at a 15 px pitch, 16 rows, 24 on 172 were two targets)."""
+    h, w = camera.shape
+    if not (n >= 1 and width >= 1 and pitch > width and height >= 1 and x0 >= 0 and y0 >= 0
+            and x0 + (n - 1) * pitch + width <= w and y0 + height <= h):
+        raise ValueError(f"{n} bars {width} px wide at a {pitch} px pitch, {height} rows tall at "
+                         f"({x0}, {y0}) do not fit a {w} x {h} frame")
+    fg, bg = (dark, bright) if positive else (bright, dark)
+    img = np.full((h, w), bg, np.uint8)
+    for k in range(n):
+        img[y0:y0 + height, x0 + k * pitch:x0 + k * pitch + width] = fg
+    return img
+
+
+def equal_bar_rows(camera: Camera, blur: float = 0.0, noise: float = 0.0,
+                   rng: np.random.Generator | None = None, every: int = 1):
+    """Rows of equal bars (:func:`equal_bar_frame`) over :data:`EQUAL_BAR_GRID`, both
+    polarities: yields ``(name, frame)`` (3,024 frames; a generator, as they are 0.7 GB
+    together). With ``blur`` (Gaussian sigma, px) and ``noise`` (sd, grey levels; needs
+    ``rng``) the exact frames are blurred and noised as :func:`expose` does; ``every``: only
+    every ``every``-th frame of the grid (the noise draws dominate the time)."""
+    import cv2
+
+    every = check_number("equal_bar_rows every", every, low=1, integer=True)
+    if noise > 0 and rng is None:
+        raise ValueError("noise > 0 needs a numpy.random.Generator (rng)")
+    ns, widths, extra, heights, levels = EQUAL_BAR_GRID
+    k = -1
+    for n in ns:
+        for width in widths:
+            for d in extra:
+                gap = width + d
+                for hf in heights:
+                    height = max(8, int(round(hf * 2.5 * (2 * width + gap) / 3.0)))
+                    for dark, bright in levels:
+                        for positive in (True, False):
+                            k += 1
+                            if k % every:
+                                continue
+                            img = equal_bar_frame(camera, n, width, width + gap, height, dark, bright, positive)
+                            if blur > 0 or noise > 0:
+                                f = img.astype(np.float32)
+                                if blur > 0:
+                                    f = cv2.GaussianBlur(f, (0, 0), sigmaX=float(blur), sigmaY=float(blur),
+                                                         borderType=cv2.BORDER_REPLICATE)
+                                if noise > 0:
+                                    f = f + rng.normal(0.0, noise, f.shape).astype(np.float32)
+                                img = np.clip(np.rint(f), 0, 255).astype(np.uint8)
+                            name = (f"{n}x{width}px/{width + gap}px pitch, {height} rows, "
+                                    f"{dark if positive else bright} on {bright if positive else dark}")
+                            yield name, img
 
 
 def real_photos(camera: Camera) -> dict[str, np.ndarray]:

@@ -223,6 +223,7 @@ def triples(l, x, line, width, runs):
     for k in range(t):
         i = idx[k]
         x0, x1, x2 = x[i], x[i + 1], x[i + 2]
+        m0, m1, m2 = float(l[i]), float(l[i + 1]), float(l[i + 2])
         x3 = x2 + l[i + 2]
         xs[k, 0] = x0
         xs[k, 1] = x1
@@ -245,13 +246,26 @@ def triples(l, x, line, width, runs):
         reg[k, 4, 0] = x3
         reg[k, 4, 1] = min(x3 + mw, width)
         if reject_periodic:
-            # five or more equal runs in a row (a grating, a chessboard): flag the run beyond
-            # each margin; its grey level decides (a bar's shade = periodic, see find_stacks)
+            # five or more equal runs in a row (a grating, a chessboard, a row of equal bars:
+            # a target's margin is half a bar, so a margin as wide as a bar with a bar's
+            # width of the bars' shade beyond it is a third bar at the pitch): flag the run
+            # beyond each margin; its grey level decides (a bar's shade = periodic, see
+            # find_stacks). The common dark-side edge shift that the run test undoes
+            # (near_equal: runs of the bars' shade grow by 2c, of the gap's shade shrink by
+            # 2c) may be undone here too: a row of 5 px bars at a 15 px pitch is 7, 8, 7, ...
+            # px. The runs are equal if they are so either as measured or with the shift undone.
+            sh = min(max((m1 - 0.5 * (m0 + m2)) * 0.25, -max_edge_shift), max_edge_shift)
+            bc = b + 2.0 * sh / 3.0
             tol = periodic_tolerance * b + 1.0
-            if i >= 2 and line[i - 2] == line[i] and abs(l[i - 1] - b) <= tol and abs(l[i - 2] - b) <= tol:
+            tol_c = periodic_tolerance * bc + 1.0
+            if i >= 2 and line[i - 2] == line[i] and (
+                    (abs(l[i - 1] - b) <= tol and abs(l[i - 2] - b) <= tol)
+                    or (abs(l[i - 1] - 2.0 * sh - bc) <= tol_c and abs(l[i - 2] + 2.0 * sh - bc) <= tol_c)):
                 reg[k, 5, 0] = x[i - 2]
                 reg[k, 5, 1] = x[i - 2] + l[i - 2]
-            if i + 4 < n and line[i + 4] == line[i] and abs(l[i + 3] - b) <= tol and abs(l[i + 4] - b) <= tol:
+            if i + 4 < n and line[i + 4] == line[i] and (
+                    (abs(l[i + 3] - b) <= tol and abs(l[i + 4] - b) <= tol)
+                    or (abs(l[i + 3] - 2.0 * sh - bc) <= tol_c and abs(l[i + 4] + 2.0 * sh - bc) <= tol_c)):
                 reg[k, 6, 0] = x[i + 4]
                 reg[k, 6, 1] = x[i + 4] + l[i + 4]
     return idx, xs, reg

@@ -2,12 +2,14 @@ import numpy as np
 import pytest
 
 from localizer import detect_targets
-from localizer.synthetic import adversarial_frames, expose, real_photos
+from localizer.synthetic import adversarial_frames, equal_bar_frame, expose, real_photos
 
 
 @pytest.mark.parametrize("method", ["thesis", "exact"])
 def test_adversarial_patterns_rejected(cam16, method):
     frames = adversarial_frames(cam16, np.random.default_rng(3))
+    # issue 18's fuzzed frame (more rows of equal bars: test_equal_bar_rows.py)
+    frames["equal_bars"] = equal_bar_frame(cam16, 4, 5, 15, 16, 24, 172)
     assert {"chessboard", "barcode", "striped_sign", "door_frame", "noise", "black", "white"} <= set(frames)
     for name, img in frames.items():
         assert detect_targets(img, cam16, method=method) == [], name
