@@ -111,6 +111,8 @@ def image_writer(path, flag: str):
     import cv2
 
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{flag} {str(path)!r}: a folder, expected an image file name")
     if not cv2.haveImageWriter(str(path)):
         raise ValueError(f"{flag} {str(path)!r}: no image format for {path.suffix or 'a name without an extension'}; "
                          "expected a .png, .jpg, .bmp or .tif name")

@@ -147,3 +147,13 @@ def test_a_pose_inside_an_obstacle_is_warned_about(tmp_path, capfd):
     assert not m.is_free(x, y)
     rc, _, err = _run(["render", "--pose", str(x), str(y), "0", "--no-noise", "--out", str(tmp_path / "f.png")], capfd)
     assert rc == 0 and "warning: --pose" in err and "inside a wall or an obstacle" in err
+
+
+def test_writes_into_a_folder_or_a_full_device_are_errors(tmp_path, capfd):
+    folder = tmp_path / "frames.png"
+    folder.mkdir()
+    rc, _, err = _run(["render", "--pose", "30", "4", "0", "--out", str(folder)], capfd)
+    _one_line_error(rc, err, "--out", "a folder, expected an image file name")
+    rc, _, err = _run(["drift", "--out", "/dev/null/x", "--distance", "10", "--seeds", "1", "--observations",
+                       "geometric", "--no-progress"], capfd)
+    assert rc == 2 and "Traceback" not in err and err.strip().splitlines()[-1].startswith("agvsim drift: error:")
