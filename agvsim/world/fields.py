@@ -262,7 +262,17 @@ def vector(ctx: Context, path: str, raw: Any, size: int, what: str, unit: str = 
 def points(ctx: Context, path: str, raw: Any, min_len: int, what: str) -> np.ndarray:
     """A list of ``[x, y]`` -> ``(N, 2)`` float array, N >= ``min_len``."""
     items = sequence(ctx, path, raw, what, min_len)
+    if all(type(p) is list and len(p) == 2 and type(p[0]) in _REAL and type(p[1]) in _REAL for p in items):
+        try:
+            pts = np.array(items, dtype=float)  # the usual case, checked at once
+        except OverflowError:  # a huge integer: reported below
+            pts = None
+        if pts is not None and np.all(np.abs(pts) <= WORLD_LIMIT):
+            return pts
     return np.array([point(ctx, join(path, i), p) for i, p in enumerate(items)], dtype=float)
+
+
+_REAL = (int, float)
 
 
 def readonly(array: np.ndarray) -> np.ndarray:

@@ -106,10 +106,12 @@ def _text(ctx, path, raw):
 @f.expects("a list of at least 2 points [x, y] in m")
 def _polyline(ctx, path, raw):
     pts = f.points(ctx, path, raw, 2, "a list of at least 2 points [x, y] in m")
-    for i, gap in enumerate(np.linalg.norm(np.diff(pts, axis=0), axis=1)):
-        if gap <= geo.EPS:
-            raise ctx.error(f.join(path, i + 1), "repeats the previous point", raw[i + 1],
-                            "consecutive points at different places")
+    steps = pts[1:] - pts[:-1]
+    repeats = np.flatnonzero(np.hypot(steps[:, 0], steps[:, 1]) <= geo.EPS)
+    if repeats.size:
+        i = int(repeats[0])
+        raise ctx.error(f.join(path, i + 1), "repeats the previous point", raw[i + 1],
+                        "consecutive points at different places")
     return f.readonly(pts)
 
 
