@@ -8,12 +8,57 @@ unless said otherwise. ``None`` means "scale the thesis value (given for
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, fields, replace
+
+import numpy as np
 
 from localizer.numeric import check_choice, check_number
 
 METHODS = ("thesis", "exact")
 PHOTOMETRIC = ("off", "clipped", "auto", "all")
+#: largest window, run or row count (px or rows) a detector parameter may name: more than
+#: any frame's side is meaningless, and the kernels' loops and buffers grow with it
+MAX_PX = 4096
+#: largest ``edge_window`` (px): the neighbourhood of a rough edge, thesis 9; it is cut half
+#: way to the next edge anyway, and the kernels loop over all of it on every row
+MAX_EDGE_WINDOW = 255
+
+_GREY = dict(low=0.0, high=255.0, unit="grey levels")
+_SHARE = dict(low=0.0, high=1.0)
+_COUNT = dict(low=1, high=MAX_PX, integer=True)
+#: every field of :class:`DetectorParams` -> (kind, check_number bounds). Kinds: "number";
+#: "auto" (a number, or None for the resolution's default); "bool"; "choice"
+#: (:data:`PHOTOMETRIC`); "path" (str, os.PathLike or None). ``tests/localizer`` holds that
+#: every field is here.
+PARAM_RANGES: dict[str, tuple[str, dict]] = {
+    "coarse_step": ("auto", dict(_COUNT, unit="rows")),
+    "threshold_window": ("auto", dict(low=3, high=MAX_PX, integer=True, unit="px")),
+    "global_threshold": ("number", _GREY),
+    "local_contrast": ("number", _GREY),
+    "contrast_window": ("number", dict(low=2, high=MAX_PX, integer=True, unit="px")),
+    "min_bar_px": ("number", dict(_COUNT, unit="px")),
+    "width_tolerance": ("number", dict(low=0.0, high=1.0, high_open=True)),
+    "width_slack": ("number", dict(low=0.0, high=MAX_PX, unit="px")),
+    "max_edge_shift": ("number", dict(low=0.0, high=MAX_PX, unit="px")),
+    "min_margin_ratio": ("number", dict(low=0.0, high=10.0)),
+    "reject_periodic": ("bool", {}),
+    "periodic_tolerance": ("number", _SHARE),
+    "min_rows": ("auto", dict(_COUNT, unit="rows")),
+    "max_row_gap": ("number", dict(low=0, high=MAX_PX, integer=True, unit="rows")),
+    "aspect_tolerance": ("number", dict(low=0.0, high=1.0, high_open=True)),
+    "max_alpha": ("number", dict(low=0.0, high=math.pi / 2, low_open=True, high_open=True, unit="rad")),
+    "uniformity": ("number", _GREY),
+    "min_contrast": ("number", _GREY),
+    "min_contrast_ratio": ("number", _SHARE),
+    "check_margins": ("bool", {}),
+    "edge_window": ("number", dict(low=3, high=MAX_EDGE_WINDOW, integer=True, unit="px")),
+    "edge_sigma_floor": ("number", dict(low=0.0, high=100.0, unit="px")),
+    "photometric": ("choice", {}),
+    "max_targets": ("number", dict(low=1, high=65536, integer=True)),
+    "max_candidates": ("number", dict(low=1, high=65536, integer=True)),
+    "debug_dir": ("path", {}),
+}
 
 
 @dataclass(frozen=True)
@@ -59,18 +104,21 @@ class DetectorParams:
     debug_dir: str | None = None  # write intermediate images here (slow)
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name in ("debug_dir", "photometric") or v is None or isinstance(v, bool):
-                continue
-            check_number(f"DetectorParams.{f.name}", v, low=0.0)
-        if self.threshold_window is not None:
-            check_number("DetectorParams.threshold_window", self.threshold_window, low=3, unit="px")
-        check_number("DetectorParams.contrast_window", self.contrast_window, low=2, unit="px")
-        check_number("DetectorParams.edge_window", self.edge_window, low=3, unit="px")
-        check_choice("DetectorParams.photometric", self.photometric, PHOTOMETRIC)
-        check_number("DetectorParams.max_alpha", self.max_alpha, low=0.0, high=math.pi / 2, low_open=True,
-                     high_open=True, unit="rad")
+        for name, (kind, bounds) in PARAM_RANGES.items():
+            v = getattr(self, name)
+            where = f"DetectorParams.{name}"
+            if kind == "bool":
+                if not isinstance(v, (bool, np.bool_)):
+                    raise ValueError(f"{where} must be True or False, got {v!r}")
+            elif kind == "choice":
+                check_choice(where, v, PHOTOMETRIC)
+            elif kind == "path":
+                if v is not None and not isinstance(v, (str, os.PathLike)):
+                    raise ValueError(f"{where} must be a folder path or None, got {v!r}")
+            elif not (v is None and kind == "auto"):
+                x = check_number(where, v, **bounds)
+                if bounds.get("integer") and not isinstance(v, int):
+                    object.__setattr__(self, name, x)  # 5.0 -> 5
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "DetectorParams":
@@ -86,9 +134,10 @@ class DetectorParams:
         scale = height / 480.0
         wscale = (width if width is not None else height * 512.0 / 480.0) / 512.0
         return replace(self,
-                       coarse_step=self.coarse_step or max(1, round(10 * scale)),
-                       threshold_window=self.threshold_window or (2 * max(4, round(16 * wscale)) + 1),
-                       min_rows=self.min_rows or max(3, round(15 * scale)))
+                       coarse_step=max(1, round(10 * scale)) if self.coarse_step is None else self.coarse_step,
+                       threshold_window=(2 * max(4, round(16 * wscale)) + 1 if self.threshold_window is None
+                                         else self.threshold_window),
+                       min_rows=max(3, round(15 * scale)) if self.min_rows is None else self.min_rows)
 
 
 @dataclass

@@ -40,10 +40,15 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
         cx = 0.5 * (edges[2 * k] + edges[2 * k + 1])
         col = int(np.clip(round(cx), 0, w - 1))
         rt, rb = rough_ends(image, st, col, thr)
-        # boundary rows: (rt-1 | rt) and (rb | rb+1)
+        # boundary rows: (rt-1 | rt) and (rb | rb+1); the neighbourhood stops half way to the
+        # bar's other end (a window taller than that would find the other end's edge)
+        hv, wv = half, int(window)
+        if hv > max(1, (rb - rt + 1) // 2):
+            hv = max(1, (rb - rt + 1) // 2)
+            wv = 2 * hv + 1
         one = np.array([col], np.int64)
-        yt = half_pixel_cols(image, one, rt - 1, half, int(window)) + 0.5
-        yb = half_pixel_cols(image, one, rb, half, int(window)) + 0.5
+        yt = half_pixel_cols(image, one, rt - 1, hv, wv) + 0.5
+        yb = half_pixel_cols(image, one, rb, hv, wv) + 0.5
         if camera.has_distortion:
             pts = camera.undistort_points(np.array([[col, yt], [col, yb]], float))
             yt, yb, cx = pts[0, 1], pts[1, 1], pts[:, 0].mean()
@@ -54,8 +59,7 @@ def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) 
         # (used only to break ties between h1 and h2 at the centre columns)
         cols = np.arange(int(math.ceil(edges[2 * k] + 1)), int(math.floor(edges[2 * k + 1] - 1)) + 1)
         cols = cols[(cols >= 0) & (cols < w)] if cols.size else one
-        mean_h.append(half_pixel_cols(image, cols, rb, half, int(window))
-                      - half_pixel_cols(image, cols, rt - 1, half, int(window)))
+        mean_h.append(half_pixel_cols(image, cols, rb, hv, wv) - half_pixel_cols(image, cols, rt - 1, hv, wv))
     diff = mean_h[1] - mean_h[0]
     return EdgeMeasurements(edges, sig, np.array(cxs), np.array(tops), np.array(bots),
                             np.full(2, 0.5 / math.sqrt(3.0)), np.full(2, 0.5 / math.sqrt(3.0)),
