@@ -301,7 +301,7 @@ def equal_bar_frame(camera: Camera, n: int, width: int, pitch: int, height: int,
     pitch, ``height`` rows tall from row ``y0`` and column ``x0``, exact pixels: grey ``dark``
     on ``bright`` (``positive``) or the reverse. No target: every neighbouring pair of bars
     looks like one, but a target's bars have a half-bar margin beyond them, not a third bar
-    (issue 18: 4 bars 5 px wide at a 15 px pitch, 16 rows, 24 on 172 were two targets)."""
+    (a fuzzed frame of 4 bars 5 px wide at a 15 px pitch, 16 rows, 24 on 172 gave three)."""
     h, w = camera.shape
     if not (n >= 1 and width >= 1 and pitch > width and height >= 1 and x0 >= 0 and y0 >= 0
             and x0 + (n - 1) * pitch + width <= w and y0 + height <= h):
