@@ -38,9 +38,8 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
   grossly (no target of their polarity predicted in view, or the nearest candidate's D² above
   ``misfit_d2``), placed in the map from the estimate, that fall within ``misfit_radius`` of
   one another, facing the same way within ``misfit_yaw``, over ``lost_misfit_frames`` such
-  frames in a row (one real target seen from a wrong estimate
-  stays put, as odometry moves the estimate with the vehicle; false detections do not line
-  up). The check that works far from the truth, and fast;
+  frames in a row (one real target seen from a wrong estimate stays put, as odometry moves the
+  estimate with the vehicle; false detections do not line up). It works far from the truth, and fast;
 * the estimate outside the map's free space (inside a wall or an obstacle, or outside the
   map), when the filter was given ``free_space``;
 * the mean NIS of the last ``nis_window`` accepted updates above the χ²(3 ``nis_window``)
@@ -49,27 +48,29 @@ with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
 
 Then :class:`~localizer.filter.relocalize.Relocalizer` takes the frames until a hypothesis is
 confirmed (never while a contact's wheel slip is still counting: the odometry the hypotheses
-ride on is not to be trusted then; global re-localization from nothing: the main state plays no part in it). While
-tracking, the filter keeps the frames since the last one with an accepted observation (at most
-``relocalize.replay_frames``), their measurements and the odometry between them; on becoming
-lost it replays them into the re-localization first, so the
-detections that were refused are the first evidence (a kidnapped vehicle has often seen two
-targets by the time it knows it is lost).
+ride on is not to be trusted then; global re-localization from nothing: the main state plays
+no part in it). While tracking, the filter keeps the frames since the last one with an accepted
+observation (at most ``relocalize.replay_frames``), their measurements and the odometry between
+them; on becoming lost it replays them into the re-localization first, so the detections that
+were refused are the first evidence (a kidnapped vehicle has often seen two targets by the time
+it knows it is lost). Inputs are checked at the boundary (:mod:`localizer.filter.limits`).
 """
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
-from dataclasses import replace
-
-from localizer.filter.association import ACCEPTED, Association, associate
+from localizer.filter.association import ACCEPTED, associate
 from localizer.filter.config import FilterConfig
+from localizer.filter.limits import (LOST, MAX_HEADING_SIGMA, MAX_ODOMETRY_STEP, MAX_ODOMETRY_TURN,
+                                     MAX_POSITION_SIGMA, RELOCALIZING, STATUSES, TIME_SLACK, TRACKING, UNINFORMATIVE,
+                                     FrameResult, Refused, check_frame_time, check_odometry, check_state,
+                                     with_refused, within_bounds)
 from localizer.filter.measurement import Measurement, TargetMap, informative
+from localizer.filter.misfits import line_up
 from localizer.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, Relocalizer
@@ -78,53 +79,6 @@ from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["FilterConfig", "FrameResult", "LOST", "MAX_HEADING_SIGMA", "MAX_ODOMETRY_STEP", "MAX_ODOMETRY_TURN",
            "MAX_POSITION_SIGMA", "PoseEKF", "RELOCALIZING", "STATUSES", "TRACKING", "UNINFORMATIVE"]
-
-#: largest |Δs| (m) of one odometry increment: a control step moves centimetres
-MAX_ODOMETRY_STEP = 10.0  # m
-#: largest |Δθ| (rad) of one odometry increment
-MAX_ODOMETRY_TURN = 2.0 * math.pi  # rad
-#: the covariance the filter represents is bounded: position σ beyond this (or a covariance not
-#: finite) is lost, and the covariance is set back to ``FilterConfig.lost_sigma``
-MAX_POSITION_SIGMA = 1.0e4  # m
-#: the same for the heading σ
-MAX_HEADING_SIGMA = 2.0 * math.pi  # rad
-#: the association status of an observation refused at the filter's boundary: its covariance
-#: (floor included) is not positive definite or a σ exceeds ``MAX_MEASUREMENT_SIGMA``
-UNINFORMATIVE = "uninformative"
-#: slack (s) on time stamps (the filter's frame times are rounded sums of control steps)
-_TIME_SLACK = 1e-9  # s
-
-TRACKING = "tracking"  # the estimate and its covariance are to be trusted
-LOST = "lost"  # the filter does not know where the vehicle is, and has no candidate pose
-RELOCALIZING = "relocalizing"  # lost, with candidate poses (hypotheses) being tested
-#: the filter's states, in the order of their codes (the env's ``status`` observation)
-STATUSES = (TRACKING, LOST, RELOCALIZING)
-
-
-@dataclass(frozen=True)
-class FrameResult:
-    """What fusing one frame did.
-
-    Attributes:
-        time: capture time (s).
-        associations: one per observation.
-        nis: (k,) normalised innovation squared of each accepted update (χ²(3) when consistent).
-        accepted: number of accepted observations.
-        lost: whether the filter is lost after the frame.
-        relocalized: whether this frame confirmed a re-localization.
-        hypotheses: live re-localization hypotheses after the frame.
-        status: the filter's status after the frame (:data:`STATUSES`).
-    """
-
-    time: float
-    associations: tuple[Association, ...]
-    nis: np.ndarray
-    accepted: int
-    lost: bool
-    relocalized: bool
-    hypotheses: int
-    status: str = TRACKING
-
 
 class PoseEKF:
     """Odometry + target-observation pose filter (module docstring).
@@ -143,7 +97,7 @@ class PoseEKF:
 
     def __init__(self, x0, P0, targets: TargetMap, mount: CameraMount,
                  config: FilterConfig = FilterConfig(), t0: float = 0.0, free_space=None) -> None:
-        x0, P0 = self._check_state("PoseEKF", x0, P0, ("x0", "P0"))
+        x0, P0 = check_state("PoseEKF", x0, P0, ("x0", "P0"))
         self.targets = targets
         self.mount = mount
         self.config = config
@@ -229,25 +183,12 @@ class PoseEKF:
         that is not finite or is before the last one (or the filter time), a Δs or Δθ that is not
         finite or beyond :data:`MAX_ODOMETRY_STEP` / :data:`MAX_ODOMETRY_TURN`, an ``in_contact``
         that is not a bool."""
-        try:
-            t = check_number("PoseEKF.add_odometry t", t, unit="s")
-        except ValueError:
-            self._refuse("odometry_time")
-            raise
         last = self._pending[-1][0] if self._pending else self.time
-        if t < last - (0.0 if self._pending else _TIME_SLACK):
-            self._refuse("odometry_time")
-            raise ValueError(f"PoseEKF.add_odometry t must not decrease: got {t!r} after {last!r} (s)")
         try:
-            ds = check_number("PoseEKF.add_odometry ds", ds, low=-MAX_ODOMETRY_STEP, high=MAX_ODOMETRY_STEP, unit="m")
-            dtheta = check_number("PoseEKF.add_odometry dtheta", dtheta, low=-MAX_ODOMETRY_TURN,
-                                  high=MAX_ODOMETRY_TURN, unit="rad")
-        except ValueError:
-            self._refuse("odometry_increment")
+            t, ds, dtheta = check_odometry(t, ds, dtheta, in_contact, last, slack=0.0 if self._pending else TIME_SLACK)
+        except Refused as exc:
+            self._refuse(exc.reason)
             raise
-        if not isinstance(in_contact, (bool, np.bool_)):
-            self._refuse("odometry_contact")
-            raise ValueError(f"PoseEKF.add_odometry in_contact must be a bool, got {in_contact!r}")
         # validated: from here on nothing raises, so nothing is half-applied
         slip = self._slip.extra(ds, dtheta, bool(in_contact), t)
         self._now.add(ds, dtheta, slip)
@@ -256,14 +197,10 @@ class PoseEKF:
     def _check_time(self, where: str, t) -> float:
         """``t`` (s) finite and not before the filter time, or a ``ValueError`` (counted)."""
         try:
-            t = check_number(where, t, unit="s")
-        except ValueError:
-            self._refuse("frame_time")
+            return check_frame_time(where, t, self.time)
+        except Refused as exc:
+            self._refuse(exc.reason)
             raise
-        if t < self.time - _TIME_SLACK:
-            self._refuse("frame_time")
-            raise ValueError(f"{where} must be >= the filter time {self.time!r} s (frames out of order?), got {t!r}")
-        return t
 
     def flush(self, t: float) -> None:
         """Predict the filter state to time ``t`` (s) with the queued increments up to ``t``."""
@@ -296,9 +233,7 @@ class PoseEKF:
         """Lost is a state, not an ever-growing matrix: a covariance that is not finite, or whose
         position σ exceeds :data:`MAX_POSITION_SIGMA` (heading σ :data:`MAX_HEADING_SIGMA`),
         makes the filter lost and is set back to ``lost_sigma`` (counted: ``covariance_bound``)."""
-        P = self.kf.P
-        if (np.isfinite(P).all() and np.isfinite(self.kf.x).all()
-                and position_sigma(P) <= MAX_POSITION_SIGMA and P.item(2, 2) <= MAX_HEADING_SIGMA ** 2):
+        if within_bounds(self.kf.x, self.kf.P):
             return
         self._refuse("covariance_bound")
         if not np.isfinite(self.kf.x).all():
@@ -366,8 +301,7 @@ class PoseEKF:
         measurement floor is added to their covariance here).
         """
         t_capture = self._check_time("PoseEKF.process_frame t_capture", t_capture)
-        # every observation is validated before the state changes (nothing half-applied on error)
-        fused = []
+        fused = []  # every observation validated before the state changes (nothing half-applied)
         for k, o in enumerate(observations):
             try:
                 fused.append(self.measurement(o))
@@ -378,13 +312,13 @@ class PoseEKF:
         keep = [k for k, m in enumerate(fused) if informative(m.R)]
         refused = len(fused) - len(keep)
         ms = fused if not refused else [fused[k] for k in keep]
-        if refused:
-            self._refusals["measurement_uninformative"] = self._refusals.get("measurement_uninformative", 0) + refused
-            self.rejections += refused
+        for _ in range(refused):
+            self._refuse("measurement_uninformative")
+            self.rejections += 1
         self._flush(t_capture)
         if self.lost:
             result = self._relocalize(t_capture, ms)
-            return self._with_refused(result, keep, len(fused)) if refused else result
+            return with_refused(result, keep, len(fused)) if refused else result
         if ms:  # the frame's measurements join the motion this flush predicted (if any)
             if self._flush_entry is not None and self._history and self._history[-1] is self._flush_entry:
                 self._flush_entry[2] = ms
@@ -429,15 +363,7 @@ class PoseEKF:
                 relocalized = True
         result = FrameResult(t_capture, tuple(assoc), np.asarray(nis), accepted, self.lost, relocalized,
                              len(self.relocalizer.hypotheses), self.status)
-        return self._with_refused(result, keep, len(fused)) if refused else result
-
-    @staticmethod
-    def _with_refused(result: FrameResult, keep: list[int], n: int) -> FrameResult:
-        """``result`` with its associations indexed by the frame's observations, the refused ones
-        (:data:`UNINFORMATIVE`) included."""
-        assoc = {keep[a.observation]: replace(a, observation=keep[a.observation]) for a in result.associations}
-        full = tuple(assoc.get(k, Association(k, UNINFORMATIVE, -1, "", math.inf, math.inf, 0)) for k in range(n))
-        return replace(result, associations=full)
+        return with_refused(result, keep, len(fused)) if refused else result
 
     def _refuse(self, reason: str) -> None:
         self._refusals[reason] = self._refusals.get(reason, 0) + 1
@@ -447,9 +373,7 @@ class PoseEKF:
         ``position_sigma`` (m) and ``heading_sigma`` (rad) of filterpy's ``P``, ``nis`` of
         filterpy's last update (``y``, ``S``; nan before any), the counters ``rejections``,
         ``relocalizations``, ``lost_events``, and ``refusals``: inputs refused, by reason
-        (``odometry_time``, ``odometry_increment``, ``odometry_contact``, ``frame_time``,
-        ``measurement_invalid``, ``measurement_uninformative``, ``covariance_bound``, and the
-        re-localizer's ``uninformative_match``, ``unsound_seed``, ``imprecise_confirmation``)."""
+        (:data:`~localizer.filter.limits.REFUSAL_REASONS`)."""
         P = self.kf.P
         refusals = dict(self._refusals)
         for reason, n in self.relocalizer.refusals.items():
@@ -466,23 +390,12 @@ class PoseEKF:
     def _line_up(self, ms: list[Measurement]) -> None:
         """Place a frame's grossly misfitting detections in the map from the estimate and count
         over how many such frames in a row (one skipped allowed) each lines up
-        (:attr:`misfit_frames`, the longest)."""
-        lens, phi = self.mount.camera_pose(self.kf.x.reshape(-1))
-        r2 = self.config.misfit_radius ** 2
+        (:attr:`misfit_frames`, the longest; :func:`localizer.filter.misfits.line_up`)."""
         self._misfit_count += 1
-        k = self._misfit_count
-        past = [e for e in self._misfits if e[5] >= k - 2]  # the two frames before this one
-        now = []
-        max_yaw = self.config.misfit_yaw
-        for m in ms:
-            d, beta, alpha = float(m.z[0]), float(m.z[1]), float(m.z[2])
-            px, py = lens[0] + d * math.cos(phi - beta), lens[1] + d * math.sin(phi - beta)
-            yaw = phi - alpha - math.pi  # the way the target faces (h(x), localizer.filter.measurement)
-            support = 1 + max((n for (qx, qy, qyaw, pol, n, _) in past
-                               if pol == m.polarity and (qx - px) ** 2 + (qy - py) ** 2 <= r2
-                               and abs(wrap_angle(yaw - qyaw)) <= max_yaw), default=0)
-            now.append((px, py, yaw, m.polarity, support, k))
-            self.misfit_frames = max(self.misfit_frames, support)
+        past = [e for e in self._misfits if e[5] >= self._misfit_count - 2]  # the two frames before this one
+        now = line_up(ms, self.mount.camera_pose(self.kf.x.reshape(-1)), past, self._misfit_count,
+                      self.config.misfit_radius, self.config.misfit_yaw)
+        self.misfit_frames = max([self.misfit_frames] + [e[4] for e in now])
         self._misfits = now + past
 
     def _refresh_now(self) -> None:
@@ -523,24 +436,9 @@ class PoseEKF:
         self.last_fix = float(t)
         self.relocalizer.reset()
 
-    @staticmethod
-    def _check_state(where: str, x, P, names: tuple[str, str] = ("x", "P")) -> tuple[np.ndarray, np.ndarray]:
-        """``x`` (3,) finite and ``P`` (3, 3) finite positive semi-definite with position σ within
-        :data:`MAX_POSITION_SIGMA` (P symmetrised), or one ``ValueError``."""
-        x = np.asarray(x, dtype=float).reshape(-1)
-        P = np.asarray(P, dtype=float)
-        if x.shape != (3,) or not np.isfinite(x).all():
-            raise ValueError(f"{where}: {names[0]} must be a finite (3,) pose (m, m, rad), got {x!r}")
-        if (P.shape != (3, 3) or not np.isfinite(P).all() or np.any(np.linalg.eigvalsh(0.5 * (P + P.T)) < 0)
-                or position_sigma(P) > MAX_POSITION_SIGMA or P.item(2, 2) > MAX_HEADING_SIGMA ** 2):
-            raise ValueError(f"{where}: {names[1]} must be a finite positive semi-definite (3, 3) matrix with position "
-                             f"sigma <= {MAX_POSITION_SIGMA:g} m and heading sigma <= {MAX_HEADING_SIGMA:g} rad, "
-                             f"got {P!r}")
-        return x, 0.5 * (P + P.T)
-
     def reset(self, x, P) -> None:
         """Set the filter state to ``x`` (3,), ``P`` (3, 3) at the current filter time; not lost."""
-        x, P = self._check_state("PoseEKF.reset", x, P)
+        x, P = check_state("PoseEKF.reset", x, P)
         self.kf.x = x.reshape(3, 1).copy()
         self.kf.P = P
         self._recovered(self.time)
