@@ -39,29 +39,6 @@ def _annotate_path(out: str, index: int, count: int) -> str:
     return str(path.with_name(f"{path.stem}_{index}{path.suffix or '.png'}"))
 
 
-def read_grey(name: str):
-    """``name`` as an 8-bit grey image, or one ``ValueError`` saying why not: no such file, a
-    folder, or a file OpenCV cannot decode (checked before OpenCV is asked, which would only warn)."""
-    from pathlib import Path
-
-    import cv2
-    import numpy as np
-
-    path = Path(name)
-    if path.is_dir():
-        raise ValueError(f"{name}: a folder, expected an image file")
-    if not path.exists():
-        raise ValueError(f"{name}: no such file")
-    try:
-        data = np.fromfile(path, dtype=np.uint8)
-    except OSError as exc:
-        raise ValueError(f"{name}: cannot read ({exc.strerror or exc})") from None
-    img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
-    if img is None:
-        raise ValueError(f"{name}: not an image OpenCV can read (expected PNG, JPEG, BMP, TIFF, ...)")
-    return img
-
-
 def run(args: argparse.Namespace) -> int:
     import math
     import statistics
@@ -69,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     from agvsim.commands._args import image_writer, write_image
     from localizer import Camera, TargetSpec, annotate, detect_targets
+    from localizer.io import read_image_grey
 
     target = TargetSpec.from_bar_width(args.bar_width)
     if args.camera:
@@ -84,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for i, name in enumerate(args.images):
         try:
-            img = read_grey(name)
+            img = read_image_grey(name)  # (the size checked from the header before decoding)
             camera = base
             if img.shape != base.shape:
                 if args.camera:

@@ -107,7 +107,7 @@ def test_unreadable_images_are_reported_one_by_one_and_the_others_localized(tmp_
     assert res["ok"] is False and [r["image"] for r in res["results"]] == [str(missing), str(folder), str(text),
                                                                           str(target_png)]
     errors = [r.get("error", "") for r in res["results"]]
-    assert "no such file" in errors[0] and "a folder" in errors[1] and "not an image" in errors[2]
+    assert "no such file" in errors[0] and "a folder" in errors[1] and "expected one of PNG" in errors[2]
     assert errors[3] == "" and len(res["results"][3]["targets"]) == 1  # the good image still localized
     assert len(set(errors[:3])) == 3  # three different reasons
     # the table says the same, and the exit status is not 0
