@@ -34,9 +34,15 @@ def _session(sid: int) -> list[int]:
     return pids
 
 
+def _default_sigint() -> None:
+    # a process started by an xdist worker inherits its ignored SIGINT (Python keeps an ignored
+    # SIGINT ignored): the run under test gets the default, as from a terminal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(out: Path) -> subprocess.Popen:
     return subprocess.Popen(CMD + ["--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
 
 
 def _wait_for_seeds(out: Path, p: subprocess.Popen, n: int = 1, timeout: float = 120.0) -> None:
