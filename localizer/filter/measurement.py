@@ -81,12 +81,18 @@ def check_covariance(where: str, R) -> np.ndarray:
     positive semi-definite (smallest eigenvalue >= -1e-12 of the largest); else one ``ValueError``
     naming ``where``, the value and the expectation."""
     R = np.asarray(R, dtype=float)
-    ok = R.shape == (3, 3) and bool(np.isfinite(R).all())
-    if ok:
-        scale = float(np.abs(R).max())
-        ok = float(np.abs(R - R.T).max()) <= 1e-9 * scale
-        if ok and scale > 0.0:
-            ok = float(np.linalg.eigvalsh(0.5 * (R + R.T))[0]) >= -1e-12 * scale
+    ok = R.shape == (3, 3)
+    if ok:  # on floats (a frame's every observation passes here): finite, symmetric, then every
+        # principal minor >= 0 (PSD), each to a tolerance of its own scale
+        a, b, c, b2, d, e, c2, e2, f = R.reshape(-1).tolist()
+        vals = (a, b, c, d, e, f, b2, c2, e2)
+        ok = all(math.isfinite(v) for v in vals)
+        if ok:
+            scale = max(abs(v) for v in vals)
+            tol = 1e-12 * scale
+            ok = max(abs(b - b2), abs(c - c2), abs(e - e2)) <= 1e-9 * scale
+            ok = ok and min(a, d, f) >= -tol and min(a * d - b * b, a * f - c * c, d * f - e * e) >= -tol * scale
+            ok = ok and a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c) >= -tol * scale * scale
     if not ok:
         raise ValueError(f"{where} must be a finite symmetric positive semi-definite (3, 3) covariance "
                          f"(m², rad²), got {R.tolist()!r}")
