@@ -89,6 +89,7 @@ def _implicit_resolvers() -> dict[str, list[tuple[str, re.Pattern]]]:
 _RESOLVERS = _implicit_resolvers()
 _SIMPLE_INT = re.compile(r"^[-+]?(?:0|[1-9][0-9]*)$")
 _SIMPLE_FLOAT = re.compile(r"^[-+]?[0-9]+(?:\.[0-9]*)?(?:[eE][-+]?[0-9]+)?$")
+_NUMBER_FIRST = frozenset("-+123456789")  # (not 0: 010 is octal in YAML 1.1, 0.5 goes the long way)
 _CONSTRUCTOR = yaml.SafeLoader("")  # only its construct_yaml_* methods are used, on single scalars
 _SCALAR_CONSTRUCTORS = {_FLOAT: _CONSTRUCTOR.construct_yaml_float, _INT: _CONSTRUCTOR.construct_yaml_int,
                         _BOOL: _CONSTRUCTOR.construct_yaml_bool,
@@ -99,6 +100,13 @@ def _scalar(ev: ScalarEvent) -> tuple[Any, str]:
     """A scalar event -> (value, tag)."""
     value = ev.value
     tag = ev.tag
+    if tag is None and ev.implicit[0] and value[:1] in _NUMBER_FIRST and len(value) <= MAX_NUMBER_CHARS:
+        # the common case, a plain decimal number: what the resolvers below give it, at once
+        # (a leading 0 is left to them: YAML 1.1 reads 010 as octal)
+        if _SIMPLE_INT.match(value):
+            return int(value), _INT
+        if _SIMPLE_FLOAT.match(value) and not value.lstrip("+-").isdigit():  # (-010: octal, the long way)
+            return float(value), _FLOAT
     if tag is None or tag == "!":
         if tag is None and ev.implicit[0]:
             tag = _STR

@@ -162,3 +162,18 @@ def test_walls_map_of_5_mb_loads_in_5_s(tmp_path):
     start = time.perf_counter()
     assert len(load_map(tmp_path / "walls.yaml").walls) == n
     assert time.perf_counter() - start < 8.0  # 5 s on an idle machine; headroom for shared CI cores
+
+
+def test_plain_numbers_read_as_the_resolvers_read_them(monkeypatch):
+    """The reader's fast path for plain decimal numbers gives what YAML 1.1's resolvers give
+    (ints, floats, octal 010 and -010, 1_000, 0x1F, sexagesimal, .5, inf, huge ints)."""
+    from agvsim.world import yamlread
+
+    vals = ["1", "-1", "+1", "0", "-0", "010", "-010", "1.5", "-0.5", "10.", "1e3", "-1e-3", "1.5e3", "1_000", "0x1F",
+            "1:20", ".5", "+.5", "-.inf", "12345678901234567890", "-7.250", "3.0E+2", "+12.5"]
+    text = "\n".join(f"k{i}: {v}" for i, v in enumerate(vals))
+    fast = yamlread.read_yaml(text)
+    monkeypatch.setattr(yamlread, "_NUMBER_FIRST", frozenset())  # every scalar through the resolvers
+    slow = yamlread.read_yaml(text)
+    assert [(type(fast[k]), repr(fast[k])) for k in fast] == [(type(slow[k]), repr(slow[k])) for k in slow]
+    assert fast["k5"] == 8 and fast["k6"] == -8 and isinstance(fast["k10"], float)
