@@ -1,4 +1,4 @@
-"""``agvsim bench fuzz``: the localizer on ``--frames`` random target-free frames (issue 18's floor).
+"""``agvsim bench fuzz``: the localizer on ``--frames`` random target-free frames.
 
 Every frame is 512 x 480 uint8 (the thesis camera) and holds NO target. Frame ``i`` of a run
 is of kind ``KINDS[i % len(KINDS)]`` and is drawn from ``numpy.random.default_rng(frame_seed)``
