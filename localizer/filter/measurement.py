@@ -63,7 +63,8 @@ from localizer.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = [
-    "MAX_MEASUREMENT_SIGMA", "Measurement", "check_covariance", "informative", "TargetMap", "ViewLimits", "measurement_jacobian",
+    "MAX_MEASUREMENT_SIGMA", "Measurement", "check_covariance", "informative", "is_positive_definite",
+    "symmetric_minors", "TargetMap", "ViewLimits", "measurement_jacobian",
     "pose_from_measurement", "pose_from_measurement_jacobian", "predict_measurement",
     "predict_all",
 ]
@@ -76,24 +77,40 @@ __all__ = [
 MAX_MEASUREMENT_SIGMA = (1.0, 0.5, 0.5)  # m, rad, rad
 
 
+def symmetric_minors(P) -> tuple[float, tuple[float, float, float], tuple[float, float, float], float] | None:
+    """``(scale, diagonal, 2 x 2 principal minors, determinant)`` of a (3, 3) matrix ``P`` on floats,
+    or None unless it is finite and symmetric (to 1e-9 of ``scale``, its largest entry): what the
+    definiteness tests below read (cheap enough for every observation and hypothesis of a frame).
+    The minors: ``(a d - b², a f - c², d f - e²)`` for ``P = [[a, b, c], [b, d, e], [c, e, f]]``."""
+    a, b, c, b2, d, e, c2, e2, f = np.asarray(P, dtype=float).reshape(-1).tolist()
+    vals = (a, b, c, d, e, f, b2, c2, e2)
+    if not all(math.isfinite(v) for v in vals):
+        return None
+    scale = max(abs(v) for v in vals)
+    if max(abs(b - b2), abs(c - c2), abs(e - e2)) > 1e-9 * scale:
+        return None
+    det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c)
+    return scale, (a, d, f), (a * d - b * b, a * f - c * c, d * f - e * e), det
+
+
+def is_positive_definite(P) -> bool:
+    """Whether the (3, 3) matrix ``P`` is finite, symmetric and positive definite (Sylvester's
+    criterion on its leading minors)."""
+    m = symmetric_minors(P)
+    return m is not None and m[1][0] > 0.0 and m[2][0] > 0.0 and m[3] > 0.0
+
+
 def check_covariance(where: str, R) -> np.ndarray:
-    """``R`` (3, 3) as an array if it is finite, symmetric (to 1e-9 of its largest entry) and
-    positive semi-definite (smallest eigenvalue >= -1e-12 of the largest); else one ``ValueError``
-    naming ``where``, the value and the expectation."""
+    """``R`` (3, 3) as an array if it is finite, symmetric and positive semi-definite (every
+    principal minor >= 0, each to 1e-12 of its own scale); else one ``ValueError`` naming
+    ``where``, the value and the expectation."""
     R = np.asarray(R, dtype=float)
-    ok = R.shape == (3, 3)
-    if ok:  # on floats (a frame's every observation passes here): finite, symmetric, then every
-        # principal minor >= 0 (PSD), each to a tolerance of its own scale
-        a, b, c, b2, d, e, c2, e2, f = R.reshape(-1).tolist()
-        vals = (a, b, c, d, e, f, b2, c2, e2)
-        ok = all(math.isfinite(v) for v in vals)
-        if ok:
-            scale = max(abs(v) for v in vals)
-            tol = 1e-12 * scale
-            ok = max(abs(b - b2), abs(c - c2), abs(e - e2)) <= 1e-9 * scale
-            ok = ok and min(a, d, f) >= -tol and min(a * d - b * b, a * f - c * c, d * f - e * e) >= -tol * scale
-            ok = ok and a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c) >= -tol * scale * scale
-    if not ok:
+    m = symmetric_minors(R) if R.shape == (3, 3) else None
+    if m is not None:
+        scale, diagonal, minors, det = m
+        tol = 1e-12 * scale
+        ok = min(diagonal) >= -tol and min(minors) >= -tol * scale and det >= -tol * scale * scale
+    if m is None or not ok:
         raise ValueError(f"{where} must be a finite symmetric positive semi-definite (3, 3) covariance "
                          f"(m², rad²), got {R.tolist()!r}")
     return R
@@ -102,7 +119,6 @@ def check_covariance(where: str, R) -> np.ndarray:
 def informative(R) -> bool:
     """Whether a fused observation covariance ``R`` (3, 3) (floor included) is positive definite
     with every standard deviation within :data:`MAX_MEASUREMENT_SIGMA`."""
-    from localizer.filter.update import is_positive_definite  # update imports this module
     return (R.item(0, 0) <= MAX_MEASUREMENT_SIGMA[0] ** 2 and R.item(1, 1) <= MAX_MEASUREMENT_SIGMA[1] ** 2
             and R.item(2, 2) <= MAX_MEASUREMENT_SIGMA[2] ** 2 and is_positive_definite(R))
 

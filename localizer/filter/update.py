@@ -24,7 +24,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
 from localizer.filter.association import innovation
-from localizer.filter.measurement import Measurement, measurement_jacobian, predict_measurement
+from localizer.filter.measurement import Measurement, is_positive_definite, measurement_jacobian, predict_measurement
 from localizer.mount import CameraMount
 from localizer.filter.motion import compose, compose_jacobians
 
@@ -92,19 +92,3 @@ def position_sigma(P) -> float:
     √ of the larger eigenvalue of P_xy (closed form, on its lower triangle as ``eigvalsh``)."""
     a, b, d = P.item(0, 0), P.item(1, 0), P.item(1, 1)
     return math.sqrt(max(0.5 * (a + d) + math.hypot(0.5 * (a - d), b), 0.0))
-
-
-def is_positive_definite(P) -> bool:
-    """Whether the (3, 3) matrix ``P`` is finite, symmetric (to 1e-9 of its scale) and positive
-    definite (Sylvester's criterion on its leading minors, on floats: cheap enough for every
-    hypothesis of every frame)."""
-    a, b, c, b2, d, e, c2, e2, f = np.asarray(P, dtype=float).reshape(-1).tolist()
-    vals = (a, b, c, d, e, f, b2, c2, e2)
-    if not all(math.isfinite(v) for v in vals):
-        return False
-    scale = max(abs(v) for v in vals)
-    if max(abs(b - b2), abs(c - c2), abs(e - e2)) > 1e-9 * scale:
-        return False
-    m2 = a * d - b * b
-    det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c)
-    return a > 0.0 and m2 > 0.0 and det > 0.0
