@@ -11,7 +11,9 @@ error against distance with the 2σ bound) are made for the median seed.
 Each seed is saved to ``--out`` the moment it finishes (atomically:
 :mod:`agvsim.commands.run_folder`). Ctrl-C stops with one line saying what
 finished; the same command resumes, skipping finished seeds; ``--restart``
-starts over. A long run prints an estimate of its time first.
+starts over. A long run prints an estimate of its time first; its memory stays bounded
+whatever the distance (the log of a long seed is thinned, its figures kept over every step:
+:mod:`agvsim.loop.record`).
 """
 from __future__ import annotations
 
@@ -314,7 +316,7 @@ def run(args) -> int:
     bar = DistanceBar(args.distance * len(seeds), disable=args.no_progress)
     bar.add(round(args.distance * len(done)))
     started = time.perf_counter()
-    logs = {seed: log_ for seed, (_, log_) in done.items()}
+    logs = {seed: _saved_log(vars(log_)) for seed, (_, log_) in done.items()}
     metrics = {seed: m for seed, (m, _) in done.items()}
 
     def finished(seed, run_log) -> None:
@@ -323,7 +325,7 @@ def run(args) -> int:
         m = run_metrics(run_log)
         m["seed"] = seed
         folder.save_seed(seed, _json_ready(m), _arrays(run_log))
-        logs[seed] = SimpleNamespace(**_arrays(run_log))  # (what the summary and plots read)
+        logs[seed] = _saved_log(_arrays(run_log))  # (what the summary and plots read)
         metrics[seed] = m
 
     try:
@@ -400,10 +402,24 @@ def _cpu_name() -> str:
 
 
 def _arrays(run_log) -> dict:
-    """The per-step arrays of a run worth keeping (for pooling figures over saved seeds)."""
+    """The per-step arrays of a run worth keeping (for pooling figures over saved seeds): the
+    record (every ``stride``-th step of a long run) and the totals over every step."""
+    import numpy as np
+
+    totals = run_log.step_totals.to_arrays() if run_log.step_totals is not None else {}
     return {"time": run_log.time, "distance": run_log.distance, "true_pose": run_log.true_pose,
             "odometry_pose": run_log.odometry_pose, "estimate": run_log.estimate,
-            "covariance": run_log.covariance, "lost": run_log.lost}
+            "covariance": run_log.covariance, "lost": run_log.lost, "stride": np.asarray(run_log.stride),
+            **totals}
+
+
+def _saved_log(arrays: dict) -> SimpleNamespace:
+    """A seed's saved arrays (:func:`_arrays`) as the summary and the plots read them."""
+    from agvsim.loop.log import StepTotals
+
+    fields = {k: v for k, v in arrays.items() if not k.startswith("totals_")}
+    fields["stride"] = int(fields.get("stride", 1))
+    return SimpleNamespace(**fields, step_totals=StepTotals.from_arrays(arrays))
 
 
 def _json_ready(obj):

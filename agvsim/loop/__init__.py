@@ -6,6 +6,8 @@ one route driver with its one log type.
 * :mod:`agvsim.loop.mission`: :func:`run_mission` with :class:`MissionConfig`
   (``steer_on="estimate" | "truth"``).
 * :mod:`agvsim.loop.log`: :class:`MissionLog` and its records.
+* :mod:`agvsim.loop.record`: :class:`MissionRecorder`, which keeps a run's log within
+  :class:`RecordLimits` whatever the distance (a long run thinned, with totals over every step).
 * :mod:`agvsim.loop.pure_pursuit`: the path follower.
 * :mod:`agvsim.loop.modes`: the choice lists (localization modes, steer-on).
 
@@ -28,6 +30,10 @@ _LAZY = {
     "FrameRecord": "agvsim.loop.log",
     "MissionLog": "agvsim.loop.log",
     "ObservationRecord": "agvsim.loop.log",
+    "StepTotals": "agvsim.loop.log",
+    "EventTotals": "agvsim.loop.log",
+    "MissionRecorder": "agvsim.loop.record",
+    "RecordLimits": "agvsim.loop.record",
     "FollowerParams": "agvsim.loop.pure_pursuit",
     "PurePursuit": "agvsim.loop.pure_pursuit",
     "RoutePath": "agvsim.loop.pure_pursuit",

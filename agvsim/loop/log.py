@@ -13,7 +13,7 @@ import numpy as np
 
 from localizer.numeric import wrap_angle
 
-__all__ = ["Arrival", "FrameRecord", "MissionLog", "ObservationRecord", "frame_record"]
+__all__ = ["Arrival", "EventTotals", "FrameRecord", "MissionLog", "ObservationRecord", "StepTotals", "frame_record"]
 
 
 class Arrival(NamedTuple):
@@ -88,8 +88,95 @@ def frame_record(fused) -> FrameRecord:
 
 
 @dataclass(frozen=True)
+class StepTotals:
+    """Figures over every control step of a run, whatever its record kept
+    (:mod:`agvsim.loop.record`): the errors of the estimate against the truth.
+
+    Attributes:
+        steps: control steps.
+        position_sq_sum: Σ e² of the position error e (m²).
+        position_max: max e (m).
+        position_histogram: (:data:`~agvsim.loop.record.HISTOGRAM_BINS`,) counts of e per bin
+            (:func:`~agvsim.loop.record.histogram_bins`), for its percentiles.
+        heading_sq_sum: Σ of the squared wrapped heading error (rad²).
+        heading_max: max |heading error| (rad).
+        odometry_max: max dead-reckoning position error (m).
+        nees_sum: Σ NEES; nees_in_bounds, nees_below_upper: steps with the NEES in the two-sided
+            95 % interval, under its upper bound (:data:`~agvsim.loop.record.NEES_BOUNDS`).
+        lost_steps: steps after which the filter was lost; time_lost: their seconds (s).
+    """
+
+    steps: int
+    position_sq_sum: float  # m²
+    position_max: float  # m
+    position_histogram: np.ndarray
+    heading_sq_sum: float  # rad²
+    heading_max: float  # rad
+    odometry_max: float  # m
+    nees_sum: float
+    nees_in_bounds: int
+    nees_below_upper: int
+    lost_steps: int
+    time_lost: float  # s
+
+    def to_arrays(self, prefix: str = "totals_") -> dict[str, np.ndarray]:
+        """The figures as named arrays (for an ``.npz``); :meth:`from_arrays` reads them back."""
+        return {prefix + k: np.asarray(getattr(self, k)) for k in self.__dataclass_fields__}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "totals_") -> StepTotals | None:
+        """The figures saved by :meth:`to_arrays` in the mapping ``arrays`` (None if absent)."""
+        if prefix + "steps" not in arrays:
+            return None
+        kinds = {"steps": int, "nees_in_bounds": int, "nees_below_upper": int, "lost_steps": int}
+        values = {}
+        for k in cls.__dataclass_fields__:
+            v = np.asarray(arrays[prefix + k])
+            values[k] = v.astype(np.int64) if k == "position_histogram" else kinds.get(k, float)(v)
+        return cls(**values)
+
+
+@dataclass(frozen=True)
+class EventTotals:
+    """Counts over every camera frame and station arrival of a run, whatever its record kept.
+
+    Attributes:
+        frames: frames fused; with_observation: of them with an observation; with_accepted:
+            with an accepted one; observed_with_accepted: with an observation and an accepted one.
+        observations, accepted: observations, and those fused.
+        wrong: accepted but not the target really seen; false_accepted: accepted false detections.
+        statuses: association status -> observations.
+        nis_count, nis_sum, nis_below_95: fused observations' NIS: count, Σ, count ≤ χ²₃(0.95).
+        arrivals: stations passed; arrival_error_sum, arrival_error_max: the estimate's position
+            error then (m); arrival_passing_sum: Σ of the true distances to the stations (m).
+    """
+
+    frames: int
+    with_observation: int
+    with_accepted: int
+    observed_with_accepted: int
+    observations: int
+    accepted: int
+    wrong: int
+    false_accepted: int
+    statuses: dict
+    nis_count: int
+    nis_sum: float
+    nis_below_95: int
+    arrivals: int
+    arrival_error_sum: float  # m
+    arrival_error_max: float  # m
+    arrival_passing_sum: float  # m
+
+
+@dataclass(frozen=True)
 class MissionLog:
-    """Per-control-step log of a driven run (N steps) and its frames.
+    """Per-control-step log of a driven run (N recorded steps) and its frames.
+
+    A long run's record is thinned to bound its memory (:mod:`agvsim.loop.record`): the arrays
+    then hold every ``stride``-th step and the last, ``frames`` every ``frame_stride``-th frame,
+    ``arrivals`` every ``arrival_stride``-th arrival, and :attr:`step_totals` and
+    :attr:`event_totals` the figures over all of them (a stride of 1: everything is recorded).
 
     Attributes:
         time, distance: (N,) s, m (true path length so far).
@@ -106,6 +193,9 @@ class MissionLog:
             is a recovery from being lost; :meth:`time_lost` sums the lost steps).
         timings: wall seconds spent in "sim", "observe", "filter", "total".
         steer_on: what the follower steered on ("estimate" or "truth").
+        stride, frame_stride, arrival_stride: the record keeps every stride-th item (1: all).
+        step_totals, event_totals: figures over every step, frame and arrival (None in a log
+            made by hand: the record is then all there is).
     """
 
     time: np.ndarray
@@ -126,23 +216,30 @@ class MissionLog:
     lost_events: int
     timings: dict
     steer_on: str = "estimate"
+    stride: int = 1
+    frame_stride: int = 1
+    arrival_stride: int = 1
+    step_totals: StepTotals | None = None
+    event_totals: EventTotals | None = None
 
     def odometry_error(self) -> np.ndarray:
-        """(N,) dead-reckoning position error (m)."""
+        """(N,) dead-reckoning position error at the recorded steps (m)."""
         return np.linalg.norm(self.odometry_pose[:, :2] - self.true_pose[:, :2], axis=1)
 
     def odometry_heading_error(self) -> np.ndarray:
-        """(N,) dead-reckoning heading error wrapped to [-π, π) (rad)."""
+        """(N,) dead-reckoning heading error at the recorded steps, wrapped to [-π, π) (rad)."""
         return wrap_angle(self.odometry_pose[:, 2] - self.true_pose[:, 2])
 
     def time_lost(self) -> float:
         """Simulated seconds the filter spent lost (the steps after which :attr:`lost` is set,
-        each counted for its own duration)."""
+        each counted for its own duration; over every step, also in a thinned record)."""
+        if self.stride > 1 and self.step_totals is not None:
+            return self.step_totals.time_lost
         if not len(self.time):
             return 0.0
         durations = np.diff(self.time, prepend=0.0)
         return float(durations[self.lost].sum())
 
     def estimate_error(self) -> np.ndarray:
-        """(N,) position error of the filter's estimate (m)."""
+        """(N,) position error of the filter's estimate at the recorded steps (m)."""
         return np.linalg.norm(self.estimate[:, :2] - self.true_pose[:, :2], axis=1)

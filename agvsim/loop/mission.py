@@ -12,7 +12,9 @@ frame times, so the log always carries an estimate and its covariance.
 Logged per control step (:class:`~agvsim.loop.log.MissionLog`): true,
 dead-reckoned and estimated pose, the estimate's covariance, the command,
 whether the filter was lost; per frame: the observations with their
-association, NIS and timings.
+association, NIS and timings. A long run's record is thinned to
+``MissionConfig.record`` (:mod:`agvsim.loop.record`: its memory is bounded
+whatever the distance), with exact totals over every step and frame.
 
 Seeding: the run's generator is split once, ``rng.spawn(2)`` (odometry,
 camera), inside the closed loop; the same seed gives the same run, bit for bit.
@@ -27,7 +29,8 @@ from typing import Callable
 import numpy as np
 
 from agvsim.loop.closed_loop import ClosedLoop, LoopConfig
-from agvsim.loop.log import Arrival, FrameRecord, MissionLog, frame_record
+from agvsim.loop.log import Arrival, MissionLog, frame_record
+from agvsim.loop.record import MissionRecorder, RecordLimits
 from agvsim.loop.modes import STEER_ON
 from agvsim.loop.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 from localizer.numeric import check_choice, check_number
@@ -47,6 +50,8 @@ class MissionConfig(LoopConfig):
         vision: False: no camera; dead reckoning through the filter only (the contrast run).
         follower: path follower tuning.
         max_time: step limit (s); None: generous (three times the route at cruise speed + 60 s).
+        record: how much of the run the log keeps in full (beyond it, a thinned record and
+            totals over every step: :mod:`agvsim.loop.record`).
     """
 
     route: str = "default"
@@ -56,6 +61,7 @@ class MissionConfig(LoopConfig):
     vision: bool = True
     follower: FollowerParams = field(default_factory=FollowerParams)
     max_time: float | None = None  # s
+    record: RecordLimits = field(default_factory=RecordLimits)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -106,9 +112,7 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
         max_time = 3.0 * pursuit.end_s / max(config.follower.cruise_speed, 0.1) + 60.0
     n_max = int(math.ceil(max_time * config.sim.control_rate))
     on_truth = config.steer_on == "truth"
-    rows_t, rows_d, truth, odo, est, cov, cmds, lost, step_ms = [], [], [], [], [], [], [], [], []
-    frames: list[FrameRecord] = []
-    arrivals: list[Arrival] = []
+    record = MissionRecorder(config.record)
     station_xy = {s.id: s.position for s in world_map.stations}
     collisions = 0
     started = time.perf_counter()
@@ -116,41 +120,26 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
     for _ in range(n_max):
         t_step = time.perf_counter()
         pose_est = ekf.pose()
-        n_arr = len(pursuit.arrivals)
         v, w = pursuit.command(sim.true_pose if on_truth else tuple(pose_est))
-        for sid, d_steer in pursuit.arrivals[n_arr:]:
+        for sid, d_steer in pursuit.arrivals:
             true_xy = np.asarray(sim.true_pose[:2], dtype=float)
-            arrivals.append(Arrival(sid, d_steer, float(np.linalg.norm(true_xy - station_xy[sid])),
-                                    float(np.linalg.norm(true_xy - pose_est[:2]))))
+            record.arrival(Arrival(sid, d_steer, float(np.linalg.norm(true_xy - station_xy[sid])),
+                                   float(np.linalg.norm(true_xy - pose_est[:2]))))
+        pursuit.arrivals.clear()  # (recorded: the follower's list stays short whatever the distance)
         if pursuit.finished:
             break
         step = loop.step(v, w)
         collisions += int(step.sim.collided)
-        frames.extend(frame_record(f) for f in step.fused)
-        rows_t.append(sim.time)
-        rows_d.append(sim.distance)
-        truth.append(sim.true_pose)
-        odo.append(sim.odometry_pose)
-        est.append(ekf.pose())
-        cov.append(ekf.covariance())
-        cmds.append((v, w))
-        lost.append(ekf.lost)
-        step_ms.append((time.perf_counter() - t_step) * 1e3)
+        for f in step.fused:
+            record.frame(frame_record(f))
+        record.step(sim.time, sim.distance, sim.true_pose, sim.odometry_pose, ekf.pose(), ekf.covariance(),
+                    (v, w), ekf.lost, (time.perf_counter() - t_step) * 1e3)
         if progress is not None:
             progress(pursuit.progress)
     t_sim, t_obs, t_filter = (loop.timings[k] for k in ("sim", "observe", "filter"))
     total = time.perf_counter() - started
-    n = len(rows_t)
-    return MissionLog(
-        time=np.asarray(rows_t), distance=np.asarray(rows_d),
-        true_pose=np.asarray(truth, dtype=float).reshape(n, 3),
-        odometry_pose=np.asarray(odo, dtype=float).reshape(n, 3),
-        estimate=np.asarray(est, dtype=float).reshape(n, 3),
-        covariance=np.asarray(cov, dtype=float).reshape(n, 3, 3),
-        command=np.asarray(cmds, dtype=float).reshape(n, 2), lost=np.asarray(lost, dtype=bool),
-        step_ms=np.asarray(step_ms, dtype=float),
-        frames=tuple(frames), arrivals=tuple(arrivals), completed=pursuit.finished,
-        collisions=collisions, rejections=ekf.rejections, relocalizations=ekf.relocalizations,
-        lost_events=ekf.lost_events,
+    return record.finish(
+        completed=pursuit.finished, collisions=collisions, rejections=ekf.rejections,
+        relocalizations=ekf.relocalizations, lost_events=ekf.lost_events,
         timings={"sim": t_sim, "observe": t_obs, "filter": t_filter, "total": total},
         steer_on=config.steer_on)

@@ -129,7 +129,8 @@ class PurePursuit:
         self._cruise = min(params.cruise_speed, max_speed)
         self._max_w = min(params.max_yaw_rate, max_yaw_rate)
         self.next_station = 1  # index into path.names of the station ahead
-        self.arrivals: list[tuple[str, float]] = []  # (station id, distance to it when passed, m)
+        # (station id, distance to it when passed, m), appended as passed; the caller may clear it
+        self.arrivals: list[tuple[str, float]] = []
 
     @property
     def finished(self) -> bool:
