@@ -19,6 +19,7 @@ BENCHMARKS: dict[str, str] = {
     "render": "camera frames: ms per 512x480 frame, raycaster and pyrender (EGL/llvmpipe) on the same poses",
     "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes",
     "fuzz": "localizer on random target-free frames: 0 crashes, 0 false detections, p99 ms per frame",
+    "filter-soak": "the pose filter under 10^6 odometry increments and hostile frames: P sane, no wrong relocalization",
 }
 
 

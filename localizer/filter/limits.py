@@ -50,7 +50,8 @@ class FrameResult:
 
     Attributes:
         time: capture time (s).
-        associations: one per observation.
+        associations: one per observation; while lost, only the observations refused at the
+            boundary have one (:data:`UNINFORMATIVE`): the rest went to re-localization.
         nis: (k,) normalised innovation squared of each accepted update (χ²(3) when consistent).
         accepted: number of accepted observations.
         lost: whether the filter is lost after the frame.
@@ -128,10 +129,14 @@ def check_frame_time(where: str, t, now: float) -> float:
 
 def with_refused(result: FrameResult, keep: list[int], n: int) -> FrameResult:
     """``result`` of the ``n`` observations' kept ones (``keep``: their indices) with its
-    associations indexed by all ``n``, the refused ones (:data:`UNINFORMATIVE`) included."""
+    associations indexed by all ``n``, one :data:`UNINFORMATIVE` for each refused one added (a
+    kept one without an association, as while lost, stays without one)."""
     assoc = {keep[a.observation]: replace(a, observation=keep[a.observation]) for a in result.associations}
-    full = tuple(assoc.get(k, Association(k, UNINFORMATIVE, -1, "", math.inf, math.inf, 0)) for k in range(n))
-    return replace(result, associations=full)
+    kept = set(keep)
+    for k in range(n):
+        if k not in kept:
+            assoc[k] = Association(k, UNINFORMATIVE, -1, "", math.inf, math.inf, 0)
+    return replace(result, associations=tuple(assoc[k] for k in sorted(assoc)))
 
 
 def within_bounds(x: np.ndarray, P: np.ndarray) -> bool:

@@ -10,8 +10,8 @@ odometry as the main filter and updated through the same filterpy update
 Each frame (:meth:`Relocalizer.process`): every live hypothesis associates the frame's
 observations (the main filter's χ² gate) and is updated with those it accepts; then every
 observation seeds hypotheses (all its pairings; those that duplicate a live hypothesis merge
-into it), so the right pose is among them even when a wrong hypothesis happens to explain
-what is seen.
+into it; none from an observation that alone places the vehicle only beyond ``max_sigma``),
+so the right pose is among them even when a wrong hypothesis happens to explain what is seen.
 Hypotheses outside the map's free space are dropped, as are those whose observations failed
 to match ``max_misses`` times (a single false detection does not kill the right one), and
 of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
@@ -24,11 +24,14 @@ frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
-**confirmed** when it has matched ``confirm_targets`` distinct targets and every other live
-hypothesis has matched fewer, and its position σ is within ``confirm_sigma``. On a map whose targets are laid out symmetrically (two
-places from which the same targets look the same), two hypotheses keep matching as many
-targets as each other: the filter then stays ``relocalizing``, never picks one, until a
-target that breaks the symmetry is seen.
+**confirmed** when it has matched ``confirm_targets`` distinct targets in ``confirm_matches``
+observations or more (one false detection that happens to fit is not enough), every other live
+hypothesis has *explained* fewer (accepted observations of fewer distinct targets, whether
+they counted as evidence or not: a rival whose gate is too loose for evidence still fits what
+is seen), and its position σ is within ``confirm_sigma``. On a map whose targets are laid out
+symmetrically (two places from which the same targets look the same), two hypotheses keep
+explaining as many targets as each other: the filter then stays ``relocalizing``, never picks
+one, until a target that breaks the symmetry is seen.
 """
 from __future__ import annotations
 
@@ -54,6 +57,9 @@ class RelocalizeConfig:
 
     Attributes:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
+        confirm_matches: observations it must have matched as evidence (the seeding one
+            included) to be confirmed: with ``confirm_targets`` 2, one target seen twice and
+            another once.
         max_misses: observations refused since the last frame a hypothesis explained whole,
             before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
@@ -77,6 +83,7 @@ class RelocalizeConfig:
     """
 
     confirm_targets: int = 2
+    confirm_matches: int = 3
     max_misses: int = 3
     max_hypotheses: int = 96
     merge_distance: float = 0.3  # m
@@ -89,7 +96,7 @@ class RelocalizeConfig:
     replay_frames: int = 60
 
     def __post_init__(self) -> None:
-        for name in ("confirm_targets", "max_misses", "max_hypotheses", "replay_frames"):
+        for name in ("confirm_targets", "confirm_matches", "max_misses", "max_hypotheses", "replay_frames"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
@@ -104,13 +111,19 @@ class Hypothesis:
     Args:
         x: (3,) pose (m, m, rad).
         P: (3, 3) its covariance.
-        matched: ids of the targets it matched.
+        matched: ids of the targets it matched as evidence (towards its confirmation).
         misses: observations it failed to match.
+        explained: ids of the targets whose observations it accepted, evidence or not (what it
+            fits, against a rival's confirmation); ``matched`` is always among them.
+        matches: observations it matched as evidence (default: one per ``matched`` id).
     """
 
-    def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0) -> None:
+    def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0,
+                 explained: Iterable[str] = (), matches: int | None = None) -> None:
         self.kf = PoseKF(x, P)
         self.matched = set(matched)
+        self.explained = self.matched | set(explained)
+        self.matches = len(self.matched) if matches is None else int(matches)
         self.misses = misses
         self.born = born  # creation order (newer is larger)
 
@@ -204,14 +217,18 @@ class Relocalizer:
                 if not is_positive_definite(P):
                     self._refuse("unsound_seed")
                     continue
+                sigma = position_sigma(evidence)
+                if sigma > self.config.max_sigma:  # the next test would drop it; in _merge it could
+                    self._refuse("uninformative_match")  # displace a sound hypothesis at its place
+                    continue
                 self._born += 1
                 # the seeding observation is the first match, when it is evidence (_evidence)
-                if position_sigma(evidence) <= self.config.evidence_sigma:
+                if sigma <= self.config.evidence_sigma:
                     matched = {self.targets.ids[j]}
                 else:
                     matched = set()
                     self._refuse("uninformative_match")
-                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born))
+                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born, explained={self.targets.ids[j]}))
                 added += 1
         self._merge()
         return added
@@ -224,7 +241,8 @@ class Relocalizer:
             for k in kept:
                 if (np.hypot(*(h.x[:2] - k.x[:2])) < cfg.merge_distance
                         and abs(wrap_angle(float(h.x[2] - k.x[2]))) < cfg.merge_heading):
-                    dup = True  # the better supported one is kept as it is (no union of evidence)
+                    dup = True  # the better supported one is kept (no union of evidence) ...
+                    k.explained |= h.explained  # ... and fits what either fitted, against its rivals
                     break
             if not dup:
                 kept.append(h)
@@ -265,9 +283,11 @@ class Relocalizer:
                 m = measurements[a.observation]
                 pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
                 update_pose(h.kf, m, pos, yaw, self.mount)
+                h.explained.add(a.target_id)
                 if precise:
                     if self._evidence(m, pos, yaw):
                         h.matched.add(a.target_id)
+                        h.matches += 1
                     else:
                         self._refuse("uninformative_match")
                 explained.add(a.observation)
@@ -281,14 +301,18 @@ class Relocalizer:
         return explained
 
     def confirmed(self) -> Hypothesis | None:
-        """The hypothesis that matched ``confirm_targets`` distinct targets with every other
-        matching fewer, within ``confirm_sigma``; or None."""
+        """The hypothesis that matched ``confirm_targets`` distinct targets in ``confirm_matches``
+        observations with every other explaining fewer, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
         if best >= self.config.confirm_targets and len(top) == 1:
             h = top[0]
+            if h.matches < self.config.confirm_matches:
+                return None
+            if any(len(g.explained) >= best for g in self.hypotheses if g is not h):
+                return None  # a rival fits as much of what is seen (module docstring)
             P = h.P
             if is_positive_definite(P) and float(np.linalg.eigvalsh(P[:2, :2])[-1]) <= self.config.confirm_sigma ** 2:
                 return h

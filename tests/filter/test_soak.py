@@ -1,0 +1,147 @@
+"""The filter soak (``agvsim bench filter-soak``) on a short run, and what the long one found.
+
+The short run (2 x 10^4 increments, 800 frames) meets the floors of the 10^6 one: P finite,
+symmetric and positive definite after every frame, its position σ within
+``MAX_POSITION_SIGMA``, no wrong confirmed re-localization, every refusal counted by the filter,
+nothing half-applied, no crash. The tests below it pin what the long runs found wrong.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from agvsim.bench import filter_soak
+from agvsim.bench.soak_inputs import FRAME_KINDS, ODOMETRY_GARBAGE
+from agvsim.cli import main
+from localizer.filter import (FilterConfig, GateConfig, Hypothesis, Measurement, PoseEKF, RelocalizeConfig,
+                              Relocalizer, TargetMap, predict_all)
+from localizer.filter.limits import MAX_POSITION_SIGMA, UNINFORMATIVE
+from tests.filter.conftest import LIMITS, MOUNT, NOISE, corridor_targets, measure
+
+CONFIG = FilterConfig(noise=NOISE, gate=GateConfig(view=LIMITS))
+BOUNDARY = ("odometry_time", "odometry_increment", "odometry_contact", "frame_time", "measurement_invalid",
+            "measurement_uninformative")
+
+
+@pytest.fixture(scope="module")
+def short_soak():
+    return filter_soak.measure(increments=20_000, frames=800, kidnaps=4, seed=0, progress=False)
+
+
+def test_the_short_soak_meets_the_floors(short_soak):
+    r = short_soak
+    assert r["increments"] == 20_000 and not r["interrupted"]
+    assert {k: v for k, v in r["floors"].items() if not v["met"]} == {}
+    assert r["P_not_finite"] == r["P_not_symmetric"] == r["P_not_positive_definite"] == 0
+    assert 0 < r["P_min_eigenvalue"] and r["P_max_eigenvalue"] <= MAX_POSITION_SIGMA ** 2
+    assert r["max_position_sigma_m"] <= MAX_POSITION_SIGMA
+    assert r["wrong_relocalizations"] == 0 and r["crashes"] == 0 and r["half_applied"] == 0
+    assert r["uncounted_refusals"] == 0 and r["not_refused"] == 0
+    assert r["max_error_tracking_m"] < 0.5
+
+
+def test_the_short_soak_covers_every_input(short_soak):
+    """The floors above say something only if every kind of input was offered and refused."""
+    r = short_soak
+    assert all(n > 0 for n in r["frame_kinds"].values()) and set(r["frame_kinds"]) == set(FRAME_KINDS)
+    assert all(r["odometry_garbage"][name] > 0 for name, _ in ODOMETRY_GARBAGE)
+    for reason in BOUNDARY:  # the filter's own counts, equal to what was offered
+        assert r["refusals"][reason] == r["refusals_expected"][reason] > 0, reason
+    assert r["kidnaps_told"] >= 1 and r["kidnaps_silent"] >= 1 and r["silent_found"] >= 1
+    assert r["relocalizations"] >= 3 and r["contact_steps"] > 0
+    assert 2.0 < r["mean_nis"] < 4.5
+
+
+def test_the_bench_command(capsys):
+    assert main(["bench", "filter-soak", "--increments", "3000", "--frames", "120", "--kidnaps", "1",
+                 "--seed", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["increments"] == 3000 and "machine" in out
+    assert all(v["met"] for v in out["floors"].values())
+    table = filter_soak.format_table(out)
+    assert "floor: wrong confirmed relocalizations <= 0: met (0)" in table
+
+
+# ------------------------------------------------------------------ what the long runs found
+def test_while_lost_only_the_refused_observations_are_marked_uninformative():
+    """A frame's kept observations go to re-localization while lost: they were reported refused
+    as uninformative beside the one that was (and the filter counted one)."""
+    targets = corridor_targets()
+    ekf = PoseEKF(np.array([8.0, 0.0, 0.0]), np.eye(3) * 1e-4, targets, MOUNT, CONFIG)
+    ekf.declare_lost("test")
+    ms = [m for _, m in measure(np.array([8.0, 0.0, 0.0]), targets, np.random.default_rng(3))]
+    assert ms
+    loose = Measurement(ms[0].z, ms[0].R * 1e10, ms[0].polarity)
+    res = ekf.process_frame(0.0, ms + [loose])
+    assert [(a.observation, a.status) for a in res.associations] == [(len(ms), UNINFORMATIVE)]
+    assert ekf.diagnostics()["refusals"]["measurement_uninformative"] == 1
+
+
+def alias_world():
+    """Two pairs of targets 10 m apart, alike (polarities too): from x = 6.5 the camera sees
+    B0, B1, from x = -3.5 A0, A1, the same way."""
+    xs = [10.0, 11.5, 20.0, 21.5]
+    return TargetMap(("A0", "A1", "B0", "B1"), [[x, -4.0] for x in xs], [math.pi / 2] * 4,
+                     ("positive", "negative", "positive", "negative"))
+
+
+def test_a_rival_that_fits_as_much_blocks_a_confirmation():
+    """The right hypothesis is too loose for its matches to count as evidence, but it fits what
+    is seen as well as a precise wrong one 10 m away does: the wrong one is not confirmed. (The
+    soak confirmed one 10.5 m off this way; the fresh seeds at the right place, merged into one,
+    keep what the loose one explained.)"""
+    targets = alias_world()
+    truth = np.array([16.5, 0.0, 0.0])
+    Z, vis = predict_all(truth, targets, MOUNT, LIMITS)
+    assert list(np.nonzero(vis)[0]) == [2, 3]
+    ms = [Measurement(Z[j], np.diag([1e-6, 1e-8, 1e-6]), targets.polarities[j]) for j in (2, 3)]
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    right = Hypothesis(truth + [0.05, 0.05, 0.0], np.diag([0.3, 0.3, 0.005]) ** 2)
+    wrong = Hypothesis(truth - [10.0, 0.0, 0.0], np.diag([0.05, 0.05, 0.002]) ** 2, matched={"A0"})
+    reloc.hypotheses = [right, wrong]
+    assert reloc.process(ms) is None
+    assert wrong.matched == {"A0", "A1"} and wrong.matches == 3  # it would be confirmed on its own
+    at_truth = [h for h in reloc.hypotheses if math.hypot(*(h.x[:2] - truth[:2])) < 0.3]
+    assert len(at_truth) == 1 and at_truth[0].explained == {"B0", "B1"}
+    assert wrong in reloc.hypotheses and reloc.confirmed() is None
+    # alone (no rival), the same evidence confirms it
+    alone = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    alone.hypotheses = [Hypothesis(truth - [10.0, 0.0, 0.0], np.diag([0.05, 0.05, 0.002]) ** 2, matched={"A0"})]
+    assert alone.update(ms) is alone.hypotheses[0]
+
+
+def test_one_chance_fit_does_not_confirm():
+    """Two distinct targets in two observations, one of them a false detection that happens to
+    fit, was enough (the soak confirmed a pose 26 m off so): ``confirm_matches`` asks for a third."""
+    targets = alias_world()
+    truth = np.array([16.5, 0.0, 0.0])
+    Z, _ = predict_all(truth, targets, MOUNT, LIMITS)
+    m0, m1 = (Measurement(Z[j], np.diag([1e-6, 1e-8, 1e-6]), targets.polarities[j]) for j in (2, 3))
+    cfg = RelocalizeConfig()
+    assert cfg.confirm_matches == 3
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS), cfg)
+    reloc.hypotheses = [Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0"})]
+    assert reloc.update([m1]) is None  # B0 once, B1 once
+    (h,) = reloc.hypotheses
+    assert h.matched == {"B0", "B1"} and h.matches == 2
+    assert reloc.update([m0]) is h  # B0 again: confirmed
+    with pytest.raises(ValueError, match="confirm_matches"):
+        RelocalizeConfig(confirm_matches=0)
+
+
+def test_a_seed_too_loose_to_survive_is_not_made():
+    """An observation whose σ_α places the vehicle only within metres (α on a far target) seeds
+    no hypothesis: the next frame would drop it, and merging it could displace a sound one."""
+    targets = corridor_targets()
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    x = np.array([8.0, 0.0, 0.0])
+    Z, vis = predict_all(x, targets, MOUNT, LIMITS)
+    j = int(np.nonzero(vis)[0][0])
+    loose = Measurement(Z[j], np.diag([0.01, 1e-8, 1.0]) ** 2, targets.polarities[j])
+    precise = Measurement(Z[j], np.diag([0.01, 1e-4, 0.01]) ** 2, targets.polarities[j])
+    assert reloc.seed([loose]) == 0
+    assert reloc.refusals["uninformative_match"] > 0 and reloc.hypotheses == []
+    assert reloc.seed([precise]) > 0
