@@ -72,9 +72,16 @@ __all__ = [
 
 #: largest standard deviations (d m, β rad, α rad) of an observation the filter fuses: beyond
 #: them an observation says next to nothing (its χ² gate accepts almost any target) and the
-#: filter refuses it (counted, :meth:`~localizer.filter.ekf.PoseEKF.diagnostics`). The
-#: detector reports centimetres and milliradians; these are two orders of magnitude above.
-MAX_MEASUREMENT_SIGMA = (1.0, 0.5, 0.5)  # m, rad, rad
+#: filter refuses it (counted, :meth:`~localizer.filter.ekf.PoseEKF.diagnostics`). Over the
+#: localizer's envelope (16 mm lens 1-10 m, 50 mm 4-20 m, |α| <= 70°, bars >= 5 px wide and
+#: 16 rows tall, dim to saturated) the detector reports σ_d up to 0.3 m and σ_β up to 0.2 mrad;
+#: σ_α reaches 1.4 rad (``exact``, small saturated targets) and 4.4 rad (``thesis``: its two
+#: roots of α apart), while d and β still place the vehicle within decimetres: such an
+#: observation is fused for them, its α all but ignored. So σ_d is bounded at three times the
+#: envelope's largest, σ_β far above it, and σ_α at a whole turn, only to keep the arithmetic
+#: sane (beyond π an α says nothing). Re-localization asks more of an observation
+#: (``RelocalizeConfig.evidence_sigma``).
+MAX_MEASUREMENT_SIGMA = (1.0, 0.5, 2.0 * math.pi)  # m, rad, rad
 
 
 def symmetric_minors(P) -> tuple[float, tuple[float, float, float], tuple[float, float, float], float] | None:
@@ -131,7 +138,8 @@ class ViewLimits:
         half_fov: half the horizontal angle of view (rad); 16 mm thesis lens: 15.4°.
         min_range, max_range: horizontal distance limits (m).
         max_incidence: largest |γ| = |α - β| (rad), the angle between the line of
-            sight and the target normal, at which a target is still recognised.
+            sight and the target normal, at which a target is still recognised (default: the
+            localizer's envelope, |α| <= 70° anywhere across a 16 mm lens's view, 85.4°).
         margin: extra bearing (rad) added to ``half_fov`` when predicting candidates,
             so a target near the image border is still considered.
     """
@@ -139,7 +147,7 @@ class ViewLimits:
     half_fov: float = math.radians(15.4)  # rad
     min_range: float = 0.5  # m
     max_range: float = 12.0  # m
-    max_incidence: float = math.radians(75.0)  # rad
+    max_incidence: float = math.radians(70.0 + 15.4)  # rad
     margin: float = math.radians(2.0)  # rad
 
     def __post_init__(self) -> None:
