@@ -27,6 +27,7 @@ from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route,
 from localizer.numeric import check_number
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log, plural
 from agvsim.commands.run_folder import RunFolder, atomic_write
+from agvsim.commands.workers import run_units
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
@@ -195,75 +196,16 @@ def _plots(world_map, run_log, out: Path, title: str) -> dict:
     return {"trajectories": str(topdown), "error_plot": str(plot), "error_plot_with_dead_reckoning": str(plot_dr)}
 
 
-_PROGRESS = None  # a worker's progress queue (set by _worker_init)
-
-
-def _worker_init(queue) -> None:
-    """A pool worker: progress to ``queue``; Ctrl-C is the parent's to handle (no traceback per
-    worker); on Linux the worker dies with its parent (no orphan computing on)."""
-    import signal
-
-    global _PROGRESS
-    _PROGRESS = queue
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-    import multiprocessing as mp
-    import os
-
-    parent = mp.parent_process()
-    if parent is not None and os.getppid() != parent.pid:  # the parent died before the line above
-        os._exit(1)
-
-
-def _pool_job(args: dict):
-    return _job({**args, "queue": _PROGRESS})
-
-
-def _run_seeds(base: dict, seeds: list[int], workers: int, finished, bar) -> None:
-    """Drive ``seeds`` (in this process, or on a pool of ``workers`` spawned processes), calling
-    ``finished(seed, run_log)`` as each ends and advancing ``bar`` by the metres driven."""
-    import multiprocessing as mp
-    import queue as queue_mod
-
-    if not seeds:
-        return
-    if workers == 1:
-        class _Q:
-            def put(self, v):
-                bar.add(v)
-        for seed in seeds:
-            finished(*_job({**base, "seed": seed, "queue": _Q()}))
-        return
-    ctx = mp.get_context("spawn")
-    progress = ctx.Queue()
-    pool = ctx.Pool(min(workers, len(seeds)), initializer=_worker_init, initargs=(progress,))
-    try:
-        results = pool.imap_unordered(_pool_job, [{**base, "seed": s} for s in seeds])
-        for _ in seeds:
-            while True:
-                try:
-                    seed, run_log = results.next(timeout=0.5)
-                    break
-                except mp.TimeoutError:
-                    pass
-                finally:
-                    try:
-                        while True:
-                            bar.add(progress.get_nowait())
-                    except queue_mod.Empty:
-                        pass
-            finished(seed, run_log)
-        pool.close()
-    except BaseException:
-        pool.terminate()  # (Ctrl-C, or a seed's error: the workers stop now)
-        raise
-    finally:
-        pool.join()
+def _ranges(seeds: list[int]) -> str:
+    """Sorted seeds as ranges: ``0-3, 5, 7-8``."""
+    parts, i = [], 0
+    while i < len(seeds):
+        j = i
+        while j + 1 < len(seeds) and seeds[j + 1] == seeds[j] + 1:
+            j += 1
+        parts.append(str(seeds[i]) if i == j else f"{seeds[i]}-{seeds[j]}")
+        i = j + 1
+    return ", ".join(parts)
 
 
 def _mount_record(mount):
@@ -309,8 +251,8 @@ def run(args) -> int:
     done = folder.finished(seeds)
     pending = [s for s in seeds if s not in done]
     if done:
-        log(f"resuming: {plural(len(done), 'seed')} of {len(seeds)} already finished in {out} (not run again; "
-            "--restart to start over)")
+        log(f"resuming: {plural(len(done), 'seed')} of {len(seeds)} already finished in {out} "
+            f"({'seed' if len(done) == 1 else 'seeds'} {_ranges(sorted(done))}: not run again; --restart to start over)")
     if pending and args.distance * len(pending) >= ESTIMATE_FROM_M:
         log(_estimate(base, pending, min(workers, len(pending))))
     bar = DistanceBar(args.distance * len(seeds), disable=args.no_progress)
@@ -322,14 +264,13 @@ def run(args) -> int:
     def finished(seed, run_log) -> None:
         # each seed is saved the moment it finishes (atomically), so a run cut short keeps it
         # and the same command resumes after it
-        m = run_metrics(run_log)
-        m["seed"] = seed
-        folder.save_seed(seed, _json_ready(m), _arrays(run_log))
+        m = _exact_json({**run_metrics(run_log), "seed": seed})  # (as a resumed run reads it back)
+        folder.save_seed(seed, m, _arrays(run_log))
         logs[seed] = _saved_log(_arrays(run_log))  # (what the summary and plots read)
         metrics[seed] = m
 
     try:
-        _run_seeds(base, pending, workers, finished, bar)
+        run_units(_job, [{**base, "seed": s} for s in pending], workers, finished, bar.add)
     except KeyboardInterrupt:
         bar.close()
         left = [s for s in seeds if s not in logs]
@@ -420,6 +361,20 @@ def _saved_log(arrays: dict) -> SimpleNamespace:
     fields = {k: v for k, v in arrays.items() if not k.startswith("totals_")}
     fields["stride"] = int(fields.get("stride", 1))
     return SimpleNamespace(**fields, step_totals=StepTotals.from_arrays(arrays))
+
+
+def _exact_json(obj):
+    """``obj`` as JSON data with its floats to the bit (NaN and infinities as None): a seed's
+    figures as saved, so that a resumed run sums the very figures an uninterrupted one does."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): _exact_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_exact_json(v) for v in obj]
+    if isinstance(obj, (np.ndarray, np.generic)):
+        return _exact_json(obj.tolist())
+    return None if isinstance(obj, float) and not math.isfinite(obj) else obj
 
 
 def _json_ready(obj):
