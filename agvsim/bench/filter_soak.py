@@ -171,7 +171,7 @@ class Soak:
                                              "truth": x_cap.tolist(), "sigma_m": ekf.position_sigma()})
         if self.window is not None:
             self.window[0] += 1
-            found = ekf.lost_events > self.window[1]
+            found = ekf.lost_events > self.window[1] or res.relocalized or ekf.status != TRACKING
             if found or self.window[0] > DETECT_WITHIN:
                 f["silent_found"] += found
                 f["max_frames_to_find"] = max(f["max_frames_to_find"], self.window[0])

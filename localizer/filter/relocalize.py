@@ -13,7 +13,8 @@ observation seeds hypotheses (all its pairings; those that duplicate a live hypo
 into it; none from an observation that alone places the vehicle only beyond ``max_sigma``),
 so the right pose is among them even when a wrong hypothesis happens to explain what is seen.
 Hypotheses outside the map's free space are dropped, as are those whose observations failed
-to match ``max_misses`` times (a single false detection does not kill the right one), and
+to match ``max_misses`` times (a single false detection does not kill the right one; a loose
+observation, one that is no evidence, neither counts for a hypothesis nor against it), and
 of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
 is kept. A match counts as evidence only while the hypothesis is precise (position σ within
 ``confirm_sigma``): a loose gate accepts anything; and only from an informative observation (one
@@ -25,10 +26,11 @@ frame (about ``max_hypotheses`` associations).
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
 **confirmed** when it has matched ``confirm_targets`` distinct targets in ``confirm_matches``
-observations or more (one false detection that happens to fit is not enough), every other live
-hypothesis has *explained* fewer (accepted observations of fewer distinct targets, whether
-they counted as evidence or not: a rival whose gate is too loose for evidence still fits what
-is seen), and its position σ is within ``confirm_sigma``. On a map whose targets are laid out
+observations or more (one false detection that happens to fit is not enough), it explained
+its last frame whole, every other live hypothesis has *explained* fewer (accepted informative
+observations of fewer distinct targets, whether they counted as evidence or not: a rival whose
+gate is too loose for evidence still fits what is seen), and its position σ is within
+``confirm_sigma``. On a map whose targets are laid out
 symmetrically (two places from which the same targets look the same), two hypotheses keep
 explaining as many targets as each other: the filter then stays ``relocalizing``, never picks
 one, until a target that breaks the symmetry is seen.
@@ -113,8 +115,8 @@ class Hypothesis:
         P: (3, 3) its covariance.
         matched: ids of the targets it matched as evidence (towards its confirmation).
         misses: observations it failed to match.
-        explained: ids of the targets whose observations it accepted, evidence or not (what it
-            fits, against a rival's confirmation); ``matched`` is always among them.
+        explained: ids of the targets whose informative observations it accepted, evidence or
+            not (what it fits, against a rival's confirmation); ``matched`` is always among them.
         matches: observations it matched as evidence (default: one per ``matched`` id).
     """
 
@@ -228,7 +230,7 @@ class Relocalizer:
                 else:
                     matched = set()
                     self._refuse("uninformative_match")
-                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born, explained={self.targets.ids[j]}))
+                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born))
                 added += 1
         self._merge()
         return added
@@ -271,28 +273,31 @@ class Relocalizer:
         if not measurements:
             return explained
         alive: list[Hypothesis] = []
+        # a loose observation fits anything: it updates a hypothesis, but says nothing for or against it
+        informative = [self._evidence(m) for m in measurements]
         for h in self.hypotheses:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self._gate)
-            refused = 0
+            refused = accepted = 0
             # a match is evidence only when the gate was tight (a loose one accepts anything)
             precise = evidence and h.position_sigma() <= self.config.confirm_sigma and is_positive_definite(h.P)
             for a in assoc:
                 if a.status != ACCEPTED:
-                    refused += 1
+                    refused += informative[a.observation]
                     continue
                 m = measurements[a.observation]
                 pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
                 update_pose(h.kf, m, pos, yaw, self.mount)
-                h.explained.add(a.target_id)
-                if precise:
-                    if self._evidence(m, pos, yaw):
+                if informative[a.observation]:
+                    accepted += 1
+                    h.explained.add(a.target_id)
+                    if precise:
                         h.matched.add(a.target_id)
                         h.matches += 1
-                    else:
-                        self._refuse("uninformative_match")
+                elif precise:
+                    self._refuse("uninformative_match")
                 explained.add(a.observation)
-            # misses: observations refused since the last frame it explained whole
-            h.misses = h.misses + refused if refused else 0
+            # misses: informative observations refused since the last frame it explained whole
+            h.misses = h.misses + refused if refused else (0 if accepted else h.misses)
             if (h.misses < self.config.max_misses and h.position_sigma() <= self.config.max_sigma
                     and is_positive_definite(h.P) and self._free(h.x)):
                 alive.append(h)
@@ -302,15 +307,16 @@ class Relocalizer:
 
     def confirmed(self) -> Hypothesis | None:
         """The hypothesis that matched ``confirm_targets`` distinct targets in ``confirm_matches``
-        observations with every other explaining fewer, within ``confirm_sigma``; or None."""
+        observations, explained its last frame whole, with every other explaining fewer, within
+        ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
         if best >= self.config.confirm_targets and len(top) == 1:
             h = top[0]
-            if h.matches < self.config.confirm_matches:
-                return None
+            if h.matches < self.config.confirm_matches or h.misses:
+                return None  # too little evidence, or the frame not explained whole
             if any(len(g.explained) >= best for g in self.hypotheses if g is not h):
                 return None  # a rival fits as much of what is seen (module docstring)
             P = h.P
@@ -319,10 +325,11 @@ class Relocalizer:
             self._refuse("imprecise_confirmation")
         return None
 
-    def _evidence(self, m: Measurement, target_position, target_yaw: float) -> bool:
+    def _evidence(self, m: Measurement) -> bool:
         """Whether ``m`` alone places the vehicle within ``evidence_sigma`` (position σ of
-        ``J R Jᵀ``, J the Jacobian of the pose it gives from the target)."""
-        J = pose_from_measurement_jacobian(m.z, target_position, target_yaw, self.mount)
+        ``J R Jᵀ``, J the Jacobian of the pose it gives from a target: the same for every
+        target, as moving or turning the target moves or turns that pose)."""
+        J = pose_from_measurement_jacobian(m.z, (0.0, 0.0), 0.0, self.mount)
         sigma = position_sigma(J @ m.R @ J.T)
         return sigma <= self.config.evidence_sigma  # False for nan
 

@@ -145,3 +145,54 @@ def test_a_seed_too_loose_to_survive_is_not_made():
     assert reloc.seed([loose]) == 0
     assert reloc.refusals["uninformative_match"] > 0 and reloc.hypotheses == []
     assert reloc.seed([precise]) > 0
+
+
+def precise(targets, truth, j) -> Measurement:
+    Z, _ = predict_all(truth, targets, MOUNT, LIMITS)
+    return Measurement(Z[j], np.diag([1e-6, 1e-8, 1e-6]), targets.polarities[j])
+
+
+def test_a_loose_observation_neither_kills_nor_supports_a_hypothesis():
+    """A hypothesis two misses from being dropped sees a loose observation (one that alone places
+    the vehicle only within metres): it stays, its misses and what it explained unchanged. (The
+    soak's right hypothesis died so, by false detections and one loose one, and a wrong one 16 m
+    off was confirmed unopposed.)"""
+    targets = alias_world()
+    truth = np.array([16.5, 0.0, 0.0])
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0"}, misses=2)
+    reloc.hypotheses = [h]
+    for polarity in ("positive", "negative"):  # one it fits (B0 / B1 in view), one it does not
+        loose = Measurement([5.0, 0.3, 0.2], np.diag([0.9, 0.4, 3.0]) ** 2, polarity)
+        assert not reloc._evidence(loose)  # noqa: SLF001 - the rule under test
+        reloc.process([loose])
+        assert h in reloc.hypotheses and h.misses == 2
+        assert h.explained == h.matched == {"B0"} and h.matches == 1
+    reloc.process([precise(targets, truth, 3)])  # an informative observation it explains: misses cleared
+    assert h in reloc.hypotheses and h.misses == 0 and h.matched == {"B0", "B1"}
+
+
+def test_not_confirmed_on_a_frame_it_did_not_explain_whole():
+    """Enough evidence, but the confirming frame holds an observation the hypothesis refuses:
+    confirmed on the next frame it explains whole, not on that one."""
+    targets = alias_world().subset([2, 3])  # B0, B1: no alias
+    truth = np.array([16.5, 0.0, 0.0])
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0", "B1"})
+    reloc.hypotheses = [h]
+    stray = Measurement([3.0, 0.2, -0.5], np.diag([1e-4, 1e-8, 1e-4]), "positive")  # a false detection
+    assert reloc.process([precise(targets, truth, 0), stray]) is None
+    assert h.matches == 3 and h.misses == 1
+    assert reloc.process([precise(targets, truth, 1)]) is h
+
+
+def test_an_observations_evidence_is_the_same_from_every_target():
+    """The evidence test reads ``J R Jᵀ`` from one target for every pairing: its position σ does
+    not depend on where the target is or which way it faces."""
+    from localizer.filter import pose_from_measurement_jacobian, position_sigma
+
+    m = Measurement([6.0, 0.1, 0.4], [[1e-3, 0, 2e-4], [0, 1e-6, 0], [2e-4, 0, 4e-3]])
+    sig = [position_sigma(J @ m.R @ J.T) for J in
+           (pose_from_measurement_jacobian(m.z, pos, yaw, MOUNT)
+            for pos, yaw in (((0.0, 0.0), 0.0), ((12.0, -3.0), 1.1), ((-40.0, 7.0), -2.9)))]
+    np.testing.assert_allclose(sig, sig[0], rtol=1e-12)
