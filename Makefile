@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test install bench clean clean-kernels
+.PHONY: demo test install warmup bench clean clean-kernels
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -14,14 +14,19 @@ $(STAMP): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-install: $(STAMP)
+# numba compiles the kernels for this machine on their first call: done here, once, on every
+# core (seconds when they are already cached; after an edit it compiles what changed)
+warmup: $(STAMP)
+	$(BIN)/agvsim warmup
 
-demo: $(STAMP)
+install: warmup
+
+demo: warmup
 	$(BIN)/agvsim demo --out out/demo
 
-# -n auto: one pytest worker per core (pytest-xdist); each worker loads the localizer's
-# compiled kernels once (tests/conftest.py), compiling them on a fresh clone (~80 s of numba).
-test: $(STAMP)
+# -n auto: one pytest worker per core (pytest-xdist); each worker loads the compiled kernels
+# once (tests/conftest.py): `warmup` compiled them before, once for all workers.
+test: warmup
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
 
 bench: $(STAMP)

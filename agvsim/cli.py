@@ -18,7 +18,7 @@ import sys
 import traceback
 
 #: Subcommand modules under agvsim.commands, in the order --help lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "reproduce", "render", "bench", "drift")
+COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "reproduce", "render", "bench", "drift", "warmup")
 
 #: The exit status of a user's mistake (argparse's own).
 USAGE_ERROR = 2
@@ -50,14 +50,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv  # (also after the command's name)
-    args = parser.parse_args([a for a in argv if a != "--debug"])
+    args = None
     try:
+        parser = build_parser()
+        args = parser.parse_args([a for a in argv if a != "--debug"])
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:  # Ctrl-C in a command that keeps nothing to resume
-        print(f"agvsim {args.command}: interrupted", file=sys.stderr)
+    except KeyboardInterrupt:  # Ctrl-C in a command that keeps nothing to resume (or while starting)
+        print(f"{_name(args)}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # the reader went away (``agvsim ... | head``): nothing more to say
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -65,8 +66,13 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:  # bad values, files that cannot be read or written
         if debug:
             traceback.print_exc()
-        print(f"agvsim {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"{_name(args)}: error: {_one_line(exc)}", file=sys.stderr)
         return USAGE_ERROR
+
+
+def _name(args) -> str:
+    """``agvsim COMMAND`` (``agvsim`` before the command line is parsed)."""
+    return f"agvsim {args.command}" if args is not None else "agvsim"
 
 
 def _one_line(exc: BaseException) -> str:

@@ -27,13 +27,29 @@ the innermost loops (the edge projection, the blurred step, the pivoting step of
 small solves), numba inserts their body into the caller before compiling it, as if
 written there (the arithmetic and its order are unchanged; a call per pixel and a
 loop over a matrix size known only at run time would cost several per cent).
+
+The first compilation in a process of one of this project's kernels prints
+:data:`COMPILE_NOTICE` on stderr (a fresh install's first call waits for it; set
+``AGVSIM_QUIET_COMPILE=1`` to silence it); :class:`CompileCounter` counts compilations (the
+warmup reports them). Numba's IR inliner is made linear first (:mod:`localizer._numba_inline`).
 """
 from __future__ import annotations
 
+import os
+import sys
+import threading
+
 import numba
+import numba.core.event
 import numba.extending
 
-__all__ = ["borrowed", "fast_inline", "fast_jit", "inline", "jit"]
+from localizer._numba_inline import linear_inline_copies
+
+__all__ = ["COMPILE_NOTICE", "CompileCounter", "borrowed", "fast_inline", "fast_jit", "inline", "jit", "quiet_compile_notice"]
+
+# numba copies an inlined helper's IR in time quadratic in its size (localizer._numba_inline):
+# made linear before any kernel is compiled
+linear_inline_copies()
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)
@@ -87,3 +103,67 @@ def borrowed(typingctx, x):
         return strip(signature.args[0], args[0])
 
     return x(x), codegen
+
+
+# ------------------------------------------------------------------ first compilation
+#: printed on stderr (once per process) when a kernel of this project is compiled rather than
+#: loaded from the cache: the first call of a fresh install waits for it
+COMPILE_NOTICE = ("compiling the localizer's and simulator's numba kernels for this machine: the first "
+                  "run waits a minute or two, later runs load them from the cache "
+                  "(`agvsim warmup` or `python -m localizer.warmup` compiles them ahead)")
+_PACKAGES = ("localizer.", "agvsim.", "envs.")
+
+
+def _ours(event) -> bool:
+    dispatcher = event.data.get("dispatcher") if isinstance(event.data, dict) else None
+    module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+    return module.startswith(_PACKAGES)
+
+
+class _Notice(numba.core.event.Listener):
+    """Prints :data:`COMPILE_NOTICE` at the first compilation of one of this project's kernels.
+    Set ``AGVSIM_QUIET_COMPILE=1`` (or call :func:`quiet_compile_notice`) to silence it."""
+
+    def __init__(self) -> None:
+        self.given = bool(os.environ.get("AGVSIM_QUIET_COMPILE"))
+
+    def on_start(self, event) -> None:
+        if not self.given and _ours(event):
+            self.given = True
+            print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+
+    def on_end(self, event) -> None:
+        pass
+
+
+_NOTICE = _Notice()
+numba.core.event.register("numba:compile", _NOTICE)
+
+
+def quiet_compile_notice() -> None:
+    """No :data:`COMPILE_NOTICE` in this process (a tool that reports compilation itself)."""
+    _NOTICE.given = True
+
+
+class CompileCounter(numba.core.event.Listener):
+    """Counts this project's kernels that numba compiles (not those loaded from the cache)
+    while installed: ``with CompileCounter() as c: ...; c.count``."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._lock = threading.Lock()
+
+    def on_start(self, event) -> None:
+        if _ours(event):
+            with self._lock:
+                self.count += 1
+
+    def on_end(self, event) -> None:
+        pass
+
+    def __enter__(self) -> "CompileCounter":
+        numba.core.event.register("numba:compile", self)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        numba.core.event.unregister("numba:compile", self)

@@ -301,3 +301,16 @@ def test_a_resumed_run_reports_the_figures_of_an_uninterrupted_one(tmp_path, cap
     assert main(argv + ["--seeds", "3", "--out", str(tmp_path / "parts")]) == 0
     resumed = json.loads(capsys.readouterr().out)
     assert _figures(resumed) == _figures(whole)
+
+
+def test_a_ctrl_c_while_the_command_line_is_built_is_one_line(monkeypatch, capsys):
+    """A Ctrl-C in the first moments (the commands' parsers being built, or the arguments
+    parsed) is the same one line and exit 130 as one during the work."""
+    import agvsim.cli as cli
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["drift", "--seeds", "1"]) == 130
+    assert capsys.readouterr().err == "agvsim: interrupted\n"

@@ -1,0 +1,88 @@
+"""Compile the localizer's kernels ahead of their first use: ``python -m localizer.warmup``.
+
+The kernels are compiled by numba for the machine they run on, the first time they are
+called, and cached on disk (beside the modules, or in the user's cache directory when the
+package's directory cannot be written): in a fresh install the first :func:`detect_targets`
+takes about a minute on a 2-core machine, every later process loads them in about a second.
+An installer, a container build or a new worker runs this once, so that no user's first
+frame waits.
+
+:data:`PARTS` names the pieces (each a detection on a synthetic frame that takes every path
+its method has); :func:`warm` compiles one in this process, the command line all of them.
+``agvsim warmup`` compiles these and the simulator's kernels, in parallel processes.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+__all__ = ["PARTS", "compile_part", "warm"]
+
+
+def _frame():
+    from localizer.camera import Camera
+    from localizer.synthetic import pose_at_column, render_frame
+
+    camera = Camera.thesis(16.0)
+    return camera, render_frame(camera, pose_at_column(camera, 3.0, math.radians(20.0)))
+
+
+def detector() -> None:
+    """The edge-based (``"exact"``) detector and its photometric refinement."""
+    from localizer.detect import detect_targets
+
+    camera, image = _frame()
+    detect_targets(image, camera)
+    detect_targets(image, camera, photometric="all")
+
+
+def thesis() -> None:
+    """The thesis's row-scanning method (``method="thesis"``)."""
+    from localizer.detect import detect_targets
+
+    camera, image = _frame()
+    detect_targets(image, camera, method="thesis")
+
+
+#: the parts, by name: ``"module:function"`` (importable in a fresh process)
+PARTS: dict[str, str] = {
+    "detector": "localizer.warmup:detector",
+    "thesis": "localizer.warmup:thesis",
+}
+
+
+def compile_part(spec: str) -> tuple[float, int]:
+    """Run one part, ``"module:function"``, in this process (without the compile notice: the
+    caller reports). Returns ``(seconds, compiled)``: the wall time and how many of the
+    project's functions numba compiled (0 when every kernel came from the cache)."""
+    import importlib
+
+    from localizer._jit import CompileCounter, quiet_compile_notice
+
+    quiet_compile_notice()
+    module, function = spec.split(":")
+    with CompileCounter() as counter:
+        start = time.perf_counter()
+        getattr(importlib.import_module(module), function)()
+        return time.perf_counter() - start, counter.count
+
+
+def warm(part: str) -> tuple[float, int]:
+    """Compile (or load from the cache) one of :data:`PARTS` in this process:
+    ``(seconds, compiled)`` as :func:`compile_part`."""
+    from localizer.numeric import check_choice
+
+    return compile_part(PARTS[check_choice("part", part, tuple(PARTS))])
+
+
+def main() -> int:
+    for part in PARTS:
+        print(f"localizer warmup: {part}...", end=" ", file=sys.stderr, flush=True)
+        seconds, compiled = warm(part)
+        print(f"{seconds:.1f} s ({compiled} functions compiled)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
