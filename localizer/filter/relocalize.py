@@ -25,12 +25,12 @@ frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
-**confirmed** when it has matched ``confirm_targets`` distinct targets in ``confirm_matches``
-observations or more (one false detection that happens to fit is not enough), it explained
-its last frame whole, every other live hypothesis has *explained* fewer (accepted informative
-observations of fewer distinct targets, whether they counted as evidence or not: a rival whose
-gate is too loose for evidence still fits what is seen), and its position σ is within
-``confirm_sigma``. On a map whose targets are laid out
+**confirmed** when it alone has matched the most distinct targets, ``confirm_targets`` of them
+at least ``confirm_sightings`` times each (a false detection that happens to fit matches
+once), it explained its last frame whole, every other live hypothesis has *explained* fewer
+targets (accepted informative observations of them, whether they counted as evidence or not:
+a rival whose gate is too loose for evidence still fits what is seen), and its position σ is
+within ``confirm_sigma``. On a map whose targets are laid out
 symmetrically (two places from which the same targets look the same), two hypotheses keep
 explaining as many targets as each other: the filter then stays ``relocalizing``, never picks
 one, until a target that breaks the symmetry is seen.
@@ -59,11 +59,10 @@ class RelocalizeConfig:
 
     Attributes:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
-        confirm_matches: observations it must have matched as evidence (the seeding one
-            included) to be confirmed: with ``confirm_targets`` 2, one target seen twice and
-            another once.
-        max_misses: observations refused since the last frame a hypothesis explained whole,
-            before it is dropped.
+        confirm_sightings: times (frames) each of those targets must have been matched as
+            evidence, the seeding observation included.
+        max_misses: informative observations refused since the last frame a hypothesis
+            explained whole, before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
         merge_distance: hypotheses closer than this (m) ...
         merge_heading: ... and this (rad): only the better supported is kept.
@@ -85,7 +84,7 @@ class RelocalizeConfig:
     """
 
     confirm_targets: int = 2
-    confirm_matches: int = 3
+    confirm_sightings: int = 2
     max_misses: int = 3
     max_hypotheses: int = 96
     merge_distance: float = 0.3  # m
@@ -98,7 +97,7 @@ class RelocalizeConfig:
     replay_frames: int = 60
 
     def __post_init__(self) -> None:
-        for name in ("confirm_targets", "confirm_matches", "max_misses", "max_hypotheses", "replay_frames"):
+        for name in ("confirm_targets", "confirm_sightings", "max_misses", "max_hypotheses", "replay_frames"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
@@ -117,15 +116,15 @@ class Hypothesis:
         misses: observations it failed to match.
         explained: ids of the targets whose informative observations it accepted, evidence or
             not (what it fits, against a rival's confirmation); ``matched`` is always among them.
-        matches: observations it matched as evidence (default: one per ``matched`` id).
+        sightings: matches as evidence by target id (default: one per ``matched`` id).
     """
 
     def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0,
-                 explained: Iterable[str] = (), matches: int | None = None) -> None:
+                 explained: Iterable[str] = (), sightings: dict[str, int] | None = None) -> None:
         self.kf = PoseKF(x, P)
         self.matched = set(matched)
         self.explained = self.matched | set(explained)
-        self.matches = len(self.matched) if matches is None else int(matches)
+        self.sightings = {t: 1 for t in self.matched} if sightings is None else dict(sightings)
         self.misses = misses
         self.born = born  # creation order (newer is larger)
 
@@ -292,7 +291,7 @@ class Relocalizer:
                     h.explained.add(a.target_id)
                     if precise:
                         h.matched.add(a.target_id)
-                        h.matches += 1
+                        h.sightings[a.target_id] = h.sightings.get(a.target_id, 0) + 1
                 elif precise:
                     self._refuse("uninformative_match")
                 explained.add(a.observation)
@@ -306,17 +305,18 @@ class Relocalizer:
         return explained
 
     def confirmed(self) -> Hypothesis | None:
-        """The hypothesis that matched ``confirm_targets`` distinct targets in ``confirm_matches``
-        observations, explained its last frame whole, with every other explaining fewer, within
-        ``confirm_sigma``; or None."""
+        """The hypothesis that alone matched the most distinct targets, ``confirm_targets`` of
+        them ``confirm_sightings`` times each, explained its last frame whole, with every other
+        explaining fewer, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
         best = max(len(h.matched) for h in self.hypotheses)
         top = [h for h in self.hypotheses if len(h.matched) == best]
         if best >= self.config.confirm_targets and len(top) == 1:
             h = top[0]
-            if h.matches < self.config.confirm_matches or h.misses:
-                return None  # too little evidence, or the frame not explained whole
+            k = self.config.confirm_sightings
+            if sum(n >= k for n in h.sightings.values()) < self.config.confirm_targets or h.misses:
+                return None  # targets not seen often enough, or the frame not explained whole
             if any(len(g.explained) >= best for g in self.hypotheses if g is not h):
                 return None  # a rival fits as much of what is seen (module docstring)
             P = h.P
