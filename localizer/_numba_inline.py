@@ -6,7 +6,8 @@ each block with a fresh ``copy.deepcopy`` memo. Every variable points at the fun
 scope, which holds every variable: each block's copy copies the whole scope again, so a copy
 costs blocks x variables, and it is made twice (the second only to hand back an unmutated IR
 that is never mutated afterwards). For the raycaster's frame kernel, whose helpers inline
-helpers, that was 184 of the 194 s of its first compilation. Upstream, numba's tracker has
+helpers, that was half of its first compilation (184 of 352 s under a profiler); with this
+patch the raycaster's kernels compile in 61 s of CPU instead of 119. Upstream, numba's tracker has
 "Spurious deep copies in inlining" (github.com/numba/numba/issues/8989), and numba-cuda's
 "perf: Reduce copy overhead in inline passes" makes the same two changes for CUDA.
 

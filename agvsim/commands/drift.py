@@ -216,6 +216,29 @@ def _mount_record(mount):
 
 
 def run(args) -> int:
+    """``agvsim drift`` (a Ctrl-C at any moment: one line saying what is saved, exit 130)."""
+    where: dict = {}  # the run's folder and seeds, as far as they are known
+    try:
+        return _run(args, where)
+    except KeyboardInterrupt:
+        log(f"agvsim drift: interrupted; {_interrupted(where)}")
+        return 130
+
+
+def _interrupted(where: dict) -> str:
+    """What a Ctrl-C leaves: nothing yet, seeds saved (the same command resumes), or every seed
+    saved and the summary to write."""
+    if "out" not in where:
+        return "no seed had started, nothing was written"
+    n, saved = len(where["seeds"]), len(where["saved"])
+    if saved < n:
+        return (f"{saved} of {n} seeds finished and saved in {where['out']}; run the same command to resume "
+                f"({plural(n - saved, 'seed')} to go)")
+    return (f"all {plural(n, 'seed')} finished and saved in {where['out']}, the summary not written: run the same "
+            "command to write it (no seed is run again)")
+
+
+def _run(args, where: dict) -> int:
     from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
     from agvsim.sensors.rendered import RenderedSource
     from agvsim.world import load_map
@@ -249,6 +272,7 @@ def run(args) -> int:
                        restart=args.restart)
     out = folder.out
     done = folder.finished(seeds)
+    where.update(out=out, seeds=seeds, saved=set(done))
     pending = [s for s in seeds if s not in done]
     if done:
         log(f"resuming: {plural(len(done), 'seed')} of {len(seeds)} already finished in {out} "
@@ -268,15 +292,13 @@ def run(args) -> int:
         folder.save_seed(seed, m, _arrays(run_log))
         logs[seed] = _saved_log(_arrays(run_log))  # (what the summary and plots read)
         metrics[seed] = m
+        where["saved"].add(seed)
 
     try:
         run_units(_job, [{**base, "seed": s} for s in pending], workers, finished, bar.add)
     except KeyboardInterrupt:
-        bar.close()
-        left = [s for s in seeds if s not in logs]
-        log(f"agvsim drift: interrupted; {len(seeds) - len(left)} of {len(seeds)} seeds finished and saved in "
-            f"{out}; run the same command to resume ({plural(len(left), 'seed')} to go)")
-        return 130
+        bar.close()  # (the bar's line ended before run() says what is saved)
+        raise
     bar.finish()
     wall = time.perf_counter() - started
     per_seed = []

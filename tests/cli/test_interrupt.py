@@ -314,3 +314,33 @@ def test_a_ctrl_c_while_the_command_line_is_built_is_one_line(monkeypatch, capsy
     monkeypatch.setattr(cli, "build_parser", interrupted)
     assert cli.main(["drift", "--seeds", "1"]) == 130
     assert capsys.readouterr().err == "agvsim: interrupted\n"
+
+
+def test_a_ctrl_c_before_the_seeds_or_during_the_summary_says_what_is_saved(tmp_path, monkeypatch, capsys):
+    """Before any seed: nothing written. After the last seed, while the summary is made: every
+    seed saved, and the same command writes the summary without running any seed again."""
+    import agvsim.analysis.evaluate as evaluate
+    import agvsim.world as world
+    from agvsim.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "run"
+    argv = ["drift", "--map", "corridor", "--observations", "geometric", "--distance", "10", "--workers", "1",
+            "--no-progress", "--no-plots", "--seeds", "2", "--out", str(out)]
+    with monkeypatch.context() as m:
+        m.setattr(world, "load_map", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1] == "agvsim drift: interrupted; no seed had started, nothing was written"
+    assert not out.exists()
+    with monkeypatch.context() as m:
+        m.setattr(evaluate, "summarize", interrupted)
+        assert main(argv) == 130
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last.startswith("agvsim drift: interrupted; all 2 seeds finished and saved in ") and "summary" in last
+    assert not (out / "drift.json").exists()
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "2 seeds of 2 already finished" in err and (out / "drift.json").exists()
