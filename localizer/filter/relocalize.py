@@ -12,9 +12,10 @@ observations (the main filter's χ² gate) and is updated with those it accepts;
 observation seeds hypotheses (all its pairings; those that duplicate a live hypothesis merge
 into it; none from an observation that alone places the vehicle only beyond ``max_sigma``),
 so the right pose is among them even when a wrong hypothesis happens to explain what is seen.
-Hypotheses outside the map's free space are dropped, as are those whose observations failed
-to match ``max_misses`` times (a single false detection does not kill the right one; a loose
-observation, one that is no evidence, neither counts for a hypothesis nor against it), and
+Hypotheses outside the map's free space are dropped, as are those that refused
+``max_misses`` observations another hypothesis fits since the last frame they explained whole
+(a false detection, which fits no hypothesis, does not kill the right one; a loose observation,
+one that is no evidence, neither counts for a hypothesis nor against it), and
 of two hypotheses closer than ``merge_distance`` / ``merge_heading`` only the better supported
 is kept. A match counts as evidence only while the hypothesis is precise (position σ within
 ``confirm_sigma``): a loose gate accepts anything; and only from an informative observation (one
@@ -25,15 +26,15 @@ frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
-**confirmed** when it alone has matched the most distinct targets, ``confirm_targets`` of them
-at least ``confirm_sightings`` times each (a false detection that happens to fit matches
-once), it explained its last frame whole, every other live hypothesis has *explained* fewer
-targets (accepted informative observations of them, whether they counted as evidence or not:
-a rival whose gate is too loose for evidence still fits what is seen), and its position σ is
-within ``confirm_sigma``. On a map whose targets are laid out
-symmetrically (two places from which the same targets look the same), two hypotheses keep
-explaining as many targets as each other: the filter then stays ``relocalizing``, never picks
-one, until a target that breaks the symmetry is seen.
+**confirmed** when it alone has *explained* the most distinct targets ``confirm_sightings``
+times each (accepted informative observations of them, whether they counted as evidence or not:
+a rival whose gate is too loose for evidence still fits what is seen; a false detection that
+happens to fit fits once), ``confirm_targets`` of them matched as evidence as often, it
+explained its last frame whole, and its position σ is within ``confirm_sigma``. An observation
+that no hypothesis fits counts against none (it is likely a false detection). On a map whose
+targets are laid out symmetrically (two places from which the same targets look the same), two
+hypotheses keep explaining as many targets as each other: the filter then stays
+``relocalizing``, never picks one, until a target that breaks the symmetry is seen.
 """
 from __future__ import annotations
 
@@ -61,8 +62,8 @@ class RelocalizeConfig:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
         confirm_sightings: times (frames) each of those targets must have been matched as
             evidence, the seeding observation included.
-        max_misses: informative observations refused since the last frame a hypothesis
-            explained whole, before it is dropped.
+        max_misses: informative observations that another hypothesis fits, refused since the
+            last frame a hypothesis explained whole, before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
         merge_distance: hypotheses closer than this (m) ...
         merge_heading: ... and this (rad): only the better supported is kept.
@@ -114,17 +115,20 @@ class Hypothesis:
         P: (3, 3) its covariance.
         matched: ids of the targets it matched as evidence (towards its confirmation).
         misses: observations it failed to match.
-        explained: ids of the targets whose informative observations it accepted, evidence or
-            not (what it fits, against a rival's confirmation); ``matched`` is always among them.
+        explained: times it accepted an informative observation, evidence or not, by target id
+            (what it fits, against a rival's confirmation; default: its ``sightings``).
         sightings: matches as evidence by target id (default: one per ``matched`` id).
+
+    ``unexplained``: the informative observations of the last frame it refused.
     """
 
     def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0,
-                 explained: Iterable[str] = (), sightings: dict[str, int] | None = None) -> None:
+                 explained: dict[str, int] | None = None, sightings: dict[str, int] | None = None) -> None:
         self.kf = PoseKF(x, P)
         self.matched = set(matched)
-        self.explained = self.matched | set(explained)
         self.sightings = {t: 1 for t in self.matched} if sightings is None else dict(sightings)
+        self.explained = dict(self.sightings) if explained is None else dict(explained)
+        self.unexplained = 0
         self.misses = misses
         self.born = born  # creation order (newer is larger)
 
@@ -243,7 +247,8 @@ class Relocalizer:
                 if (np.hypot(*(h.x[:2] - k.x[:2])) < cfg.merge_distance
                         and abs(wrap_angle(float(h.x[2] - k.x[2]))) < cfg.merge_heading):
                     dup = True  # the better supported one is kept (no union of evidence) ...
-                    k.explained |= h.explained  # ... and fits what either fitted, against its rivals
+                    for t, n in h.explained.items():  # ... and fits what either fitted, against its rivals
+                        k.explained[t] = max(k.explained.get(t, 0), n)
                     break
             if not dup:
                 kept.append(h)
@@ -271,32 +276,41 @@ class Relocalizer:
         explained: set[int] = set()
         if not measurements:
             return explained
-        alive: list[Hypothesis] = []
         # a loose observation fits anything: it updates a hypothesis, but says nothing for or against it
         informative = [self._evidence(m) for m in measurements]
+        fitted: set[int] = set()  # the informative observations some hypothesis accepted
+        refusals = []
         for h in self.hypotheses:
             assoc = associate(h.x, h.P, measurements, self.targets, self.mount, self._gate)
-            refused = accepted = 0
+            refused, accepted = [], 0
             # a match is evidence only when the gate was tight (a loose one accepts anything)
             precise = evidence and h.position_sigma() <= self.config.confirm_sigma and is_positive_definite(h.P)
             for a in assoc:
                 if a.status != ACCEPTED:
-                    refused += informative[a.observation]
+                    if informative[a.observation]:
+                        refused.append(a.observation)
                     continue
                 m = measurements[a.observation]
                 pos, yaw = self.targets.positions[a.target], self.targets.yaws[a.target]
                 update_pose(h.kf, m, pos, yaw, self.mount)
                 if informative[a.observation]:
                     accepted += 1
-                    h.explained.add(a.target_id)
+                    fitted.add(a.observation)
+                    h.explained[a.target_id] = h.explained.get(a.target_id, 0) + 1
                     if precise:
                         h.matched.add(a.target_id)
                         h.sightings[a.target_id] = h.sightings.get(a.target_id, 0) + 1
                 elif precise:
                     self._refuse("uninformative_match")
                 explained.add(a.observation)
-            # misses: informative observations refused since the last frame it explained whole
-            h.misses = h.misses + refused if refused else (0 if accepted else h.misses)
+            refusals.append((refused, accepted))
+        alive: list[Hypothesis] = []
+        for h, (refused, accepted) in zip(self.hypotheses, refusals):
+            h.unexplained = len(refused)
+            # misses: since the last frame it explained whole, the informative observations it
+            # refused that another hypothesis fits (one that fits nowhere is likely a false detection)
+            against = sum(k in fitted for k in refused)
+            h.misses = h.misses + against if against else (0 if accepted and not refused else h.misses)
             if (h.misses < self.config.max_misses and h.position_sigma() <= self.config.max_sigma
                     and is_positive_definite(h.P) and self._free(h.x)):
                 alive.append(h)
@@ -305,20 +319,19 @@ class Relocalizer:
         return explained
 
     def confirmed(self) -> Hypothesis | None:
-        """The hypothesis that alone matched the most distinct targets, ``confirm_targets`` of
-        them ``confirm_sightings`` times each, explained its last frame whole, with every other
-        explaining fewer, within ``confirm_sigma``; or None."""
+        """The hypothesis that alone explained the most distinct targets ``confirm_sightings``
+        times each, ``confirm_targets`` of them matched as evidence as often, that explained its
+        last frame whole, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
-        best = max(len(h.matched) for h in self.hypotheses)
-        top = [h for h in self.hypotheses if len(h.matched) == best]
-        if best >= self.config.confirm_targets and len(top) == 1:
-            h = top[0]
-            k = self.config.confirm_sightings
-            if sum(n >= k for n in h.sightings.values()) < self.config.confirm_targets or h.misses:
-                return None  # targets not seen often enough, or the frame not explained whole
-            if any(len(g.explained) >= best for g in self.hypotheses if g is not h):
-                return None  # a rival fits as much of what is seen (module docstring)
+        k = self.config.confirm_sightings
+        # what each fits: the targets it explained k times (a false detection fits once)
+        fits = [sum(n >= k for n in h.explained.values()) for h in self.hypotheses]
+        best = max(fits)
+        if best >= self.config.confirm_targets and fits.count(best) == 1:  # no rival fits as much
+            h = self.hypotheses[fits.index(best)]
+            if sum(n >= k for n in h.sightings.values()) < self.config.confirm_targets or h.unexplained:
+                return None  # too little of it evidence, or the frame not explained whole
             P = h.P
             if is_positive_definite(P) and float(np.linalg.eigvalsh(P[:2, :2])[-1]) <= self.config.confirm_sigma ** 2:
                 return h

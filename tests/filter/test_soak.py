@@ -99,13 +99,13 @@ def test_a_rival_that_fits_as_much_blocks_a_confirmation():
     assert list(np.nonzero(vis)[0]) == [2, 3]
     ms = [Measurement(Z[j], np.diag([1e-6, 1e-8, 1e-6]), targets.polarities[j]) for j in (2, 3)]
     reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
-    right = Hypothesis(truth + [0.05, 0.05, 0.0], np.diag([0.3, 0.3, 0.005]) ** 2)
+    right = Hypothesis(truth + [0.05, 0.05, 0.0], np.diag([0.3, 0.3, 0.005]) ** 2, explained={"B0": 1, "B1": 1})
     wrong = Hypothesis(truth - [10.0, 0.0, 0.0], np.diag([0.05, 0.05, 0.002]) ** 2, matched={"A0", "A1"})
     reloc.hypotheses = [right, wrong]
     assert reloc.process(ms) is None
     assert wrong.sightings == {"A0": 2, "A1": 2} and wrong.misses == 0  # it would be confirmed on its own
     at_truth = [h for h in reloc.hypotheses if math.hypot(*(h.x[:2] - truth[:2])) < 0.3]
-    assert len(at_truth) == 1 and at_truth[0].explained == {"B0", "B1"}
+    assert len(at_truth) == 1 and at_truth[0].explained == {"B0": 2, "B1": 2}
     assert wrong in reloc.hypotheses and reloc.confirmed() is None
     # alone (no rival), the same evidence confirms it
     alone = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
@@ -170,7 +170,7 @@ def test_a_loose_observation_neither_kills_nor_supports_a_hypothesis():
         assert not reloc._evidence(loose)  # noqa: SLF001 - the rule under test
         reloc.process([loose])
         assert h in reloc.hypotheses and h.misses == 2
-        assert h.explained == h.matched == {"B0"} and h.sightings == {"B0": 1}
+        assert h.explained == h.sightings == {"B0": 1}
     reloc.process([precise(targets, truth, 3)])  # an informative observation it explains: misses cleared
     assert h in reloc.hypotheses and h.misses == 0 and h.matched == {"B0", "B1"}
 
@@ -185,8 +185,26 @@ def test_not_confirmed_on_a_frame_it_did_not_explain_whole():
     reloc.hypotheses = [h]
     stray = Measurement([3.0, 0.2, -0.5], np.diag([1e-4, 1e-8, 1e-4]), "positive")  # a false detection
     assert reloc.process([precise(targets, truth, 0), stray]) is None
-    assert h.sightings == {"B0": 2, "B1": 2} and h.misses == 1
+    assert h.sightings == {"B0": 2, "B1": 2} and h.unexplained == 1
+    assert h.misses == 0  # no hypothesis fits the false detection: it counts against none
     assert reloc.process([precise(targets, truth, 1)]) is h
+
+
+def test_only_an_observation_another_hypothesis_fits_counts_against_one():
+    """Two misses from being dropped: a false detection that fits nowhere leaves a hypothesis
+    alive (the soak's right hypotheses died of such, and wrong ones were confirmed unopposed); an
+    observation another hypothesis fits drops it."""
+    targets = alias_world().subset([2, 3])
+    truth = np.array([16.5, 0.0, 0.0])
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0"}, misses=2)
+    off = Hypothesis(truth + [0.0, 1.5, 0.0], np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0"}, misses=2)
+    reloc.hypotheses = [h, off]
+    stray = Measurement([3.0, 0.2, -0.5], np.diag([1e-4, 1e-8, 1e-4]), "positive")
+    reloc.process([stray])
+    assert h in reloc.hypotheses and off in reloc.hypotheses and h.misses == off.misses == 2
+    reloc.process([precise(targets, truth, 1)])  # h fits it, off does not
+    assert h in reloc.hypotheses and h.misses == 0 and off not in reloc.hypotheses
 
 
 def test_an_observations_evidence_is_the_same_from_every_target():
