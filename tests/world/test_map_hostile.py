@@ -15,7 +15,7 @@ from agvsim.world import yamlread
 WALL = "{id: w, points: [[0, 0], [4, 0]], thickness: 0.2}"
 
 
-def _refused(tmp_path, text: str | bytes, name: str = "bad.yaml", seconds: float = 1.0) -> MapError:
+def _refused(tmp_path, text: str | bytes, name: str = "bad.yaml", seconds: float = 10.0) -> MapError:
     """Load the file; it must fail within ``seconds`` and 100 MB, with a one-line message naming it."""
     path = tmp_path / name
     path.write_bytes(text if isinstance(text, bytes) else text.encode())
@@ -27,6 +27,8 @@ def _refused(tmp_path, text: str | bytes, name: str = "bad.yaml", seconds: float
     finally:
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
+    # a guard against runaway work (the alias bomb took minutes and gigabytes), not the speed
+    # floor: the seconds on an idle machine (0.45-0.6 s against 1 s) are BENCHMARKS.md's
     assert time.perf_counter() - start < seconds
     assert peak < 100e6
     message = str(err.value)
@@ -149,19 +151,24 @@ def _walls_map(path, size: int) -> int:
     return len(lines) - 1
 
 
-def test_walls_map_of_100_kb_loads_quickly(tmp_path):
-    n = _walls_map(tmp_path / "walls.yaml", 100_000)
+def _load_seconds(path) -> float:
     start = time.perf_counter()
-    assert len(load_map(tmp_path / "walls.yaml").walls) == n
-    assert time.perf_counter() - start < 1.0
+    load_map(path)
+    return time.perf_counter() - start
 
 
 @pytest.mark.slow
-def test_walls_map_of_5_mb_loads_in_5_s(tmp_path):
-    n = _walls_map(tmp_path / "walls.yaml", 5_000_000)
-    start = time.perf_counter()
-    assert len(load_map(tmp_path / "walls.yaml").walls) == n
-    assert time.perf_counter() - start < 8.0  # 5 s on an idle machine; headroom for shared CI cores
+def test_a_map_of_walls_loads_in_time_linear_in_its_size(tmp_path):
+    """50 KB, 500 KB and 5 MB of walls: each ten times larger loads in about ten times the time
+    (quadratic work would be a hundred; the seconds themselves are a benchmark's: BENCHMARKS.md,
+    4.3-4.9 s for the 5 MB map on an idle 2-core machine)."""
+    sizes = (50_000, 500_000, 5_000_000)
+    counts = [_walls_map(tmp_path / f"walls{k}.yaml", size) for k, size in enumerate(sizes)]
+    for k, n in enumerate(counts):
+        assert len(load_map(tmp_path / f"walls{k}.yaml").walls) == n
+    seconds = [min(_load_seconds(tmp_path / f"walls{k}.yaml") for _ in range(2 if k < 2 else 1))
+               for k in range(len(sizes))]
+    assert seconds[1] < 30 * seconds[0] and seconds[2] < 30 * seconds[1], seconds
 
 
 def test_plain_numbers_read_as_the_resolvers_read_them(monkeypatch):
