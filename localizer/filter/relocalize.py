@@ -27,10 +27,11 @@ frame (about ``max_hypotheses`` associations).
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
 **confirmed** when it alone has *explained* the most distinct targets ``confirm_sightings``
-times each (accepted informative observations of them, whether they counted as evidence or not:
-a rival whose gate is too loose for evidence still fits what is seen; a false detection that
-happens to fit fits once), ``confirm_targets`` of them matched as evidence as often, it
-explained its last frame whole, and its position σ is within ``confirm_sigma``. An observation
+times each, at least ``confirm_targets`` (accepted informative observations of them in as many
+frames, whether they counted as evidence or not: a rival whose gate is too loose for evidence
+still fits what is seen; a false detection that happens to fit fits once), it matched
+``confirm_targets`` targets as evidence, it explained its last frame whole, and its position σ
+is within ``confirm_sigma``. An observation
 that no hypothesis fits counts against none (it is likely a false detection). On a map whose
 targets are laid out symmetrically (two places from which the same targets look the same), two
 hypotheses keep explaining as many targets as each other: the filter then stays
@@ -60,8 +61,8 @@ class RelocalizeConfig:
 
     Attributes:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
-        confirm_sightings: times (frames) each of those targets must have been matched as
-            evidence, the seeding observation included.
+        confirm_sightings: times (frames) a hypothesis must have explained a target for it to
+            count towards confirmation (the seeding observation included).
         max_misses: informative observations that another hypothesis fits, refused since the
             last frame a hypothesis explained whole, before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
@@ -116,18 +117,17 @@ class Hypothesis:
         matched: ids of the targets it matched as evidence (towards its confirmation).
         misses: observations it failed to match.
         explained: times it accepted an informative observation, evidence or not, by target id
-            (what it fits, against a rival's confirmation; default: its ``sightings``).
-        sightings: matches as evidence by target id (default: one per ``matched`` id).
+            (what it fits, towards its confirmation and against a rival's; default: once each
+            ``matched`` id).
 
     ``unexplained``: the informative observations of the last frame it refused.
     """
 
     def __init__(self, x, P, matched: Iterable[str] = (), misses: int = 0, born: int = 0,
-                 explained: dict[str, int] | None = None, sightings: dict[str, int] | None = None) -> None:
+                 explained: dict[str, int] | None = None) -> None:
         self.kf = PoseKF(x, P)
         self.matched = set(matched)
-        self.sightings = {t: 1 for t in self.matched} if sightings is None else dict(sightings)
-        self.explained = dict(self.sightings) if explained is None else dict(explained)
+        self.explained = {t: 1 for t in self.matched} if explained is None else dict(explained)
         self.unexplained = 0
         self.misses = misses
         self.born = born  # creation order (newer is larger)
@@ -299,7 +299,6 @@ class Relocalizer:
                     h.explained[a.target_id] = h.explained.get(a.target_id, 0) + 1
                     if precise:
                         h.matched.add(a.target_id)
-                        h.sightings[a.target_id] = h.sightings.get(a.target_id, 0) + 1
                 elif precise:
                     self._refuse("uninformative_match")
                 explained.add(a.observation)
@@ -320,8 +319,8 @@ class Relocalizer:
 
     def confirmed(self) -> Hypothesis | None:
         """The hypothesis that alone explained the most distinct targets ``confirm_sightings``
-        times each, ``confirm_targets`` of them matched as evidence as often, that explained its
-        last frame whole, within ``confirm_sigma``; or None."""
+        times each (``confirm_targets`` at least), matched ``confirm_targets`` as evidence,
+        explained its last frame whole, within ``confirm_sigma``; or None."""
         if not self.hypotheses:
             return None
         k = self.config.confirm_sightings
@@ -330,7 +329,7 @@ class Relocalizer:
         best = max(fits)
         if best >= self.config.confirm_targets and fits.count(best) == 1:  # no rival fits as much
             h = self.hypotheses[fits.index(best)]
-            if sum(n >= k for n in h.sightings.values()) < self.config.confirm_targets or h.unexplained:
+            if len(h.matched) < self.config.confirm_targets or h.unexplained:
                 return None  # too little of it evidence, or the frame not explained whole
             P = h.P
             if is_positive_definite(P) and float(np.linalg.eigvalsh(P[:2, :2])[-1]) <= self.config.confirm_sigma ** 2:

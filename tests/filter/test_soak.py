@@ -103,7 +103,7 @@ def test_a_rival_that_fits_as_much_blocks_a_confirmation():
     wrong = Hypothesis(truth - [10.0, 0.0, 0.0], np.diag([0.05, 0.05, 0.002]) ** 2, matched={"A0", "A1"})
     reloc.hypotheses = [right, wrong]
     assert reloc.process(ms) is None
-    assert wrong.sightings == {"A0": 2, "A1": 2} and wrong.misses == 0  # it would be confirmed on its own
+    assert wrong.explained == {"A0": 2, "A1": 2} and wrong.misses == 0  # it would be confirmed on its own
     at_truth = [h for h in reloc.hypotheses if math.hypot(*(h.x[:2] - truth[:2])) < 0.3]
     assert len(at_truth) == 1 and at_truth[0].explained == {"B0": 2, "B1": 2}
     assert wrong in reloc.hypotheses and reloc.confirmed() is None
@@ -117,7 +117,7 @@ def test_a_rival_that_fits_as_much_blocks_a_confirmation():
 def test_a_target_matched_once_does_not_confirm():
     """A hypothesis seeded by a false detection that happens to fit one target, then matching a
     real target frame after frame, has two distinct targets, one of them seen once: the soak
-    confirmed poses 25-29 m off so. Each must be seen ``confirm_sightings`` times."""
+    confirmed poses 25-29 m off so. Each must be explained ``confirm_sightings`` times."""
     targets = alias_world().subset([2, 3])  # B0, B1: no alias
     truth = np.array([16.5, 0.0, 0.0])
     Z, _ = predict_all(truth, targets, MOUNT, LIMITS)
@@ -129,7 +129,7 @@ def test_a_target_matched_once_does_not_confirm():
     for _ in range(3):
         assert reloc.update([m1]) is None
     (h,) = reloc.hypotheses
-    assert h.sightings == {"B0": 1, "B1": 3}
+    assert h.explained == {"B0": 1, "B1": 3} and h.matched == {"B0", "B1"}
     assert reloc.update([m0]) is h  # B0 seen again: confirmed
     with pytest.raises(ValueError, match="confirm_sightings"):
         RelocalizeConfig(confirm_sightings=0)
@@ -170,7 +170,7 @@ def test_a_loose_observation_neither_kills_nor_supports_a_hypothesis():
         assert not reloc._evidence(loose)  # noqa: SLF001 - the rule under test
         reloc.process([loose])
         assert h in reloc.hypotheses and h.misses == 2
-        assert h.explained == h.sightings == {"B0": 1}
+        assert h.explained == {"B0": 1} and h.matched == {"B0"}
     reloc.process([precise(targets, truth, 3)])  # an informative observation it explains: misses cleared
     assert h in reloc.hypotheses and h.misses == 0 and h.matched == {"B0", "B1"}
 
@@ -181,11 +181,11 @@ def test_not_confirmed_on_a_frame_it_did_not_explain_whole():
     targets = alias_world().subset([2, 3])  # B0, B1: no alias
     truth = np.array([16.5, 0.0, 0.0])
     reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
-    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0", "B1"}, sightings={"B0": 1, "B1": 2})
+    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0", "B1"}, explained={"B0": 1, "B1": 2})
     reloc.hypotheses = [h]
     stray = Measurement([3.0, 0.2, -0.5], np.diag([1e-4, 1e-8, 1e-4]), "positive")  # a false detection
     assert reloc.process([precise(targets, truth, 0), stray]) is None
-    assert h.sightings == {"B0": 2, "B1": 2} and h.unexplained == 1
+    assert h.explained == {"B0": 2, "B1": 2} and h.unexplained == 1
     assert h.misses == 0  # no hypothesis fits the false detection: it counts against none
     assert reloc.process([precise(targets, truth, 1)]) is h
 
