@@ -26,12 +26,13 @@ frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
-**confirmed** when it alone has *explained* the most distinct targets ``confirm_sightings``
-times each, at least ``confirm_targets`` (accepted informative observations of them in as many
-frames, whether they counted as evidence or not: a rival whose gate is too loose for evidence
-still fits what is seen; a false detection that happens to fit fits once), it matched
-``confirm_targets`` targets as evidence, it explained its last frame whole, and its position σ
-is within ``confirm_sigma``. An observation
+**confirmed** when, for ``confirm_frames`` frames in a row, it alone has *explained* the most
+distinct targets ``confirm_sightings`` times each, at least ``confirm_targets`` (accepted
+informative observations of them through its gate in as many frames, whether they counted as
+evidence or not: a rival whose gate is too loose for evidence still fits what is seen; a false
+detection that happens to fit fits once; the seeding observation is no test, the hypothesis
+was made to fit it), it matched ``confirm_targets`` targets as evidence, it explained its last
+frame whole, and its position σ is within ``confirm_sigma``. An observation
 that no hypothesis fits counts against none (it is likely a false detection). On a map whose
 targets are laid out symmetrically (two places from which the same targets look the same), two
 hypotheses keep explaining as many targets as each other: the filter then stays
@@ -62,7 +63,9 @@ class RelocalizeConfig:
     Attributes:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
         confirm_sightings: times (frames) a hypothesis must have explained a target for it to
-            count towards confirmation (the seeding observation included).
+            count towards confirmation (the seeding observation not included).
+        confirm_frames: frames in a row it must lead (be the one that would be confirmed):
+            one observation whose covariance does not fit its error can tip the lead once.
         max_misses: informative observations that another hypothesis fits, refused since the
             last frame a hypothesis explained whole, before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
@@ -87,6 +90,7 @@ class RelocalizeConfig:
 
     confirm_targets: int = 2
     confirm_sightings: int = 2
+    confirm_frames: int = 2
     max_misses: int = 3
     max_hypotheses: int = 96
     merge_distance: float = 0.3  # m
@@ -99,7 +103,8 @@ class RelocalizeConfig:
     replay_frames: int = 60
 
     def __post_init__(self) -> None:
-        for name in ("confirm_targets", "confirm_sightings", "max_misses", "max_hypotheses", "replay_frames"):
+        for name in ("confirm_targets", "confirm_sightings", "confirm_frames", "max_misses", "max_hypotheses",
+                     "replay_frames"):
             check_number(f"RelocalizeConfig.{name}", getattr(self, name), low=1, integer=True)
         check_number("RelocalizeConfig.merge_distance", self.merge_distance, low=0.0, unit="m")
         check_number("RelocalizeConfig.merge_heading", self.merge_heading, low=0.0, unit="rad")
@@ -116,9 +121,9 @@ class Hypothesis:
         P: (3, 3) its covariance.
         matched: ids of the targets it matched as evidence (towards its confirmation).
         misses: observations it failed to match.
-        explained: times it accepted an informative observation, evidence or not, by target id
-            (what it fits, towards its confirmation and against a rival's; default: once each
-            ``matched`` id).
+        explained: times it accepted an informative observation through its gate, evidence or
+            not, by target id (what it fits, towards its confirmation and against a rival's;
+            default: once each ``matched`` id).
 
     ``unexplained``: the informative observations of the last frame it refused.
     """
@@ -183,10 +188,13 @@ class Relocalizer:
         #: definite), ``imprecise_confirmation`` (the best-supported hypothesis refused as
         #: confirmed: covariance not positive definite or position σ above ``confirm_sigma``)
         self.refusals: dict[str, int] = {}
+        self._leader: Hypothesis | None = None  # the one that would be confirmed ...
+        self._lead = 0  # ... for this many frames in a row
 
     def reset(self) -> None:
         """Drop every hypothesis."""
         self.hypotheses = []
+        self._leader, self._lead = None, 0
 
     def predict(self, u: np.ndarray, Q: np.ndarray) -> None:
         """Move every hypothesis by the relative motion u (3,) with covariance Q (3, 3)."""
@@ -227,13 +235,14 @@ class Relocalizer:
                     self._refuse("uninformative_match")  # displace a sound hypothesis at its place
                     continue
                 self._born += 1
-                # the seeding observation is the first match, when it is evidence (_evidence)
+                # the seeding observation is the first match, when it is evidence (_evidence); it
+                # explains nothing (a hypothesis made from an observation fits it by construction)
                 if sigma <= self.config.evidence_sigma:
                     matched = {self.targets.ids[j]}
                 else:
                     matched = set()
                     self._refuse("uninformative_match")
-                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born))
+                self.hypotheses.append(Hypothesis(x, P, matched, born=self._born, explained={}))
                 added += 1
         self._merge()
         return added
@@ -257,6 +266,7 @@ class Relocalizer:
     def update(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
         """Test every hypothesis against a frame; returns the confirmed one, if any."""
         self._test(measurements)
+        self._follow_lead()
         return self.confirmed()
 
     def process(self, measurements: Sequence[Measurement], evidence: bool = True) -> Hypothesis | None:
@@ -268,6 +278,7 @@ class Relocalizer:
             return None
         self._test(measurements, evidence)
         self.seed(measurements)  # duplicates of live hypotheses merge away
+        self._follow_lead()
         return self.confirmed()
 
     def _test(self, measurements: Sequence[Measurement], evidence: bool = True) -> set[int]:
@@ -318,6 +329,19 @@ class Relocalizer:
         return explained
 
     def confirmed(self) -> Hypothesis | None:
+        """The hypothesis that has led (:meth:`_leading`) for ``confirm_frames`` frames in a
+        row; or None."""
+        if self._lead >= self.config.confirm_frames and self._leader in self.hypotheses:
+            return self._leader
+        return None
+
+    def _follow_lead(self) -> None:
+        """After a frame: the leader, and for how many frames in a row it has led."""
+        h = self._leading()
+        self._lead = self._lead + 1 if h is not None and h is self._leader else int(h is not None)
+        self._leader = h
+
+    def _leading(self) -> Hypothesis | None:
         """The hypothesis that alone explained the most distinct targets ``confirm_sightings``
         times each (``confirm_targets`` at least), matched ``confirm_targets`` as evidence,
         explained its last frame whole, within ``confirm_sigma``; or None."""
