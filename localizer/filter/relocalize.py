@@ -26,7 +26,8 @@ frame (about ``max_hypotheses`` associations).
 
 Targets look alike, so later observations of the *same* target fit every hypothesis seeded
 from it equally well; only a different target tells them apart. A hypothesis is
-**confirmed** when, for ``confirm_frames`` frames in a row, it alone has *explained* the most
+**confirmed** when, for ``confirm_frames`` frames in a row (frames with an informative
+observation: one of loose observations only says nothing), it alone has *explained* the most
 distinct targets ``confirm_sightings`` times each, at least ``confirm_targets`` (accepted
 informative observations of them through its gate in as many frames, whether they counted as
 evidence or not: a rival whose gate is too loose for evidence still fits what is seen; a false
@@ -64,8 +65,9 @@ class RelocalizeConfig:
         confirm_targets: distinct targets a hypothesis must match to be confirmed.
         confirm_sightings: times (frames) a hypothesis must have explained a target for it to
             count towards confirmation (the seeding observation not included).
-        confirm_frames: frames in a row it must lead (be the one that would be confirmed):
-            one observation whose covariance does not fit its error can tip the lead once.
+        confirm_frames: frames in a row (with an informative observation) it must lead (be the
+            one that would be confirmed): one observation whose covariance does not fit its
+            error can tip the lead once.
         max_misses: informative observations that another hypothesis fits, refused since the
             last frame a hypothesis explained whole, before it is dropped.
         max_hypotheses: cap on live hypotheses (the best-supported are kept).
@@ -265,8 +267,8 @@ class Relocalizer:
 
     def update(self, measurements: Sequence[Measurement]) -> Hypothesis | None:
         """Test every hypothesis against a frame; returns the confirmed one, if any."""
-        self._test(measurements)
-        self._follow_lead()
+        if self._test(measurements):
+            self._follow_lead()
         return self.confirmed()
 
     def process(self, measurements: Sequence[Measurement], evidence: bool = True) -> Hypothesis | None:
@@ -276,17 +278,17 @@ class Relocalizer:
         the hypotheses are updated, but what they match does not count towards confirmation."""
         if not measurements:
             return None
-        self._test(measurements, evidence)
+        informed = self._test(measurements, evidence)
         self.seed(measurements)  # duplicates of live hypotheses merge away
-        self._follow_lead()
+        if informed:  # a frame of loose observations only says nothing, for the lead either
+            self._follow_lead()
         return self.confirmed()
 
-    def _test(self, measurements: Sequence[Measurement], evidence: bool = True) -> set[int]:
-        """Associate and update every live hypothesis; drop the dead; the observations some
-        hypothesis accepted."""
-        explained: set[int] = set()
+    def _test(self, measurements: Sequence[Measurement], evidence: bool = True) -> bool:
+        """Associate and update every live hypothesis; drop the dead; whether the frame held an
+        informative observation."""
         if not measurements:
-            return explained
+            return False
         # a loose observation fits anything: it updates a hypothesis, but says nothing for or against it
         informative = [self._evidence(m) for m in measurements]
         fitted: set[int] = set()  # the informative observations some hypothesis accepted
@@ -312,7 +314,6 @@ class Relocalizer:
                         h.matched.add(a.target_id)
                 elif precise:
                     self._refuse("uninformative_match")
-                explained.add(a.observation)
             refusals.append((refused, accepted))
         alive: list[Hypothesis] = []
         for h, (refused, accepted) in zip(self.hypotheses, refusals):
@@ -326,11 +327,11 @@ class Relocalizer:
                 alive.append(h)
         self.hypotheses = alive
         self._merge()
-        return explained
+        return any(informative)
 
     def confirmed(self) -> Hypothesis | None:
         """The hypothesis that has led (:meth:`_leading`) for ``confirm_frames`` frames in a
-        row; or None."""
+        row (frames with an informative observation); or None."""
         if self._lead >= self.config.confirm_frames and self._leader in self.hypotheses:
             return self._leader
         return None

@@ -247,3 +247,18 @@ def test_a_lead_tipped_by_one_observation_is_not_confirmed():
     assert alias.explained["A1"] == 2 and right.unexplained == 1  # the alias leads ...
     assert reloc.process([precise(targets, truth, 3)]) is None  # ... for one frame: B1 ties it
     assert right.explained == {"B0": 2, "B1": 2} and alias in reloc.hypotheses
+
+
+def test_a_frame_of_loose_observations_does_not_confirm():
+    """The soak's vehicle was carried off while the right hypothesis led; the next frame held
+    only loose observations and confirmed it, wrong by then. Such a frame says nothing: the lead
+    holds, and the next informative frame decides."""
+    targets = alias_world().subset([2, 3])
+    truth = np.array([16.5, 0.0, 0.0])
+    reloc = Relocalizer(targets, MOUNT, GateConfig(view=LIMITS))
+    h = Hypothesis(truth, np.diag([0.05, 0.05, 0.002]) ** 2, matched={"B0", "B1"}, explained={"B0": 2, "B1": 1})
+    reloc.hypotheses = [h]
+    assert reloc.process([precise(targets, truth, 1)]) is None  # leads one frame
+    loose = Measurement([5.0, 0.1, 0.2], np.diag([0.9, 0.4, 3.0]) ** 2, "negative")
+    assert reloc.process([loose]) is None and reloc.process([loose, loose]) is None
+    assert reloc.process([precise(targets, truth, 0)]) is h
