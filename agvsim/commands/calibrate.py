@@ -15,6 +15,8 @@ OUT_SUFFIXES = (".yaml", ".yml", ".xml")
 PROGRESS_FROM = 10
 #: an RMS reprojection error above this (px) is said to be suspect
 RMS_WARN_PX = 1.0
+#: a focal length whose standard deviation is above this fraction of it is said to be uncertain
+FOCAL_WARN = 0.01
 
 
 def board_size(text: str) -> tuple[int, int]:
@@ -113,6 +115,7 @@ def _write(camera, path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import math
     import sys
 
     from tqdm import tqdm
@@ -172,11 +175,17 @@ def run(args: argparse.Namespace) -> int:
     if result.rms > RMS_WARN_PX:
         log(f"agvsim calibrate: the RMS reprojection error is {result.rms:.2f} px (a good set is well under "
             f"{RMS_WARN_PX:g} px): check --board and that the board is flat and sharp in every image")
+    uncertain = max(result.sigma["fx"] / cam.fx, result.sigma["fy"] / cam.fy)
+    if uncertain > FOCAL_WARN:
+        log(f"agvsim calibrate: the focal length is uncertain to {100 * uncertain:.1f} % (one standard deviation; "
+            f"the views' boards differ by at most {math.degrees(result.tilt_spread):.0f} degrees): add views "
+            "tilted 20 to 45 degrees in different directions")
     status = 2 if failed else 0
     if args.json:
         emit_json({"ok": not failed, "out": str(out), "replaced": replaced,
                    "board": {"cols": cols, "rows": rows, "square_m": args.square},
                    "views": len(corners), "rms_px": result.rms,
+                   "tilt_spread_deg": math.degrees(result.tilt_spread),
                    "camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
                               "height": cam.height, "dist": list(cam.dist)},
                    "distortion": dist, "sigma": result.sigma, "images": rows_out})

@@ -113,6 +113,22 @@ def test_too_few_views_write_nothing(views, tmp_path, capfd):
     assert len(lines) == 4 and "found in 0 of 3 images" in lines[3] and not out.exists()
 
 
+def test_views_that_do_not_determine_the_focal_length(tmp_path, capfd):
+    out = tmp_path / "calib.yaml"
+    square_on = write_views(tmp_path / "flat", poses=[((0, 0, roll), c) for roll, c in
+                                                     ((0, (0, 0, 0.55)), (0, (0.05, 0, 0.6)), (10, (-0.05, 0.02, 0.5)))])
+    rc, stdout, err = _run(["calibrate", *map(str, square_on), *BOARD, "--out", str(out)], capfd)
+    assert rc == 2 and len(_lines(err)) == 1 and stdout == "" and not out.exists()
+    assert "do not determine the focal length" in err and "tilted 20 to 45 degrees" in err
+    # boards a few degrees apart: a focal length, said to be uncertain
+    few = write_views(tmp_path / "few", poses=[((0, 0, 0), (0, 0, 0.55)), ((5, 0, 0), (0.05, 0, 0.6)),
+                                               ((0, 5, 10), (-0.05, 0.02, 0.5))])
+    rc, stdout, err = _run(["calibrate", *map(str, few), *BOARD, "--out", str(out), "--json"], capfd)
+    data = json.loads(stdout)
+    assert rc == 0 and abs(data["camera"]["fx"] / TRUE_CAMERA.fx - 1) < 0.05 and data["sigma"]["fx"] > 8
+    assert "focal length is uncertain to 1." in err and "add views" in err and out.exists()
+
+
 def test_images_of_different_sizes_write_nothing_and_keep_the_old_file(views, tmp_path, capfd):
     paths, _ = views
     small = tmp_path / "small.png"

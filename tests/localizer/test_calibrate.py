@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from localizer import Camera
-from localizer.calibrate import MIN_VIEWS, board_points, calibrate_views, find_chessboard
+from localizer.calibrate import MIN_VIEWS, board_points, calibrate_views, find_chessboard, tilt_spread
 from tests.cli.chessboard_views import COLS, POSES, ROWS, SQUARE, TRUE_CAMERA, pose, render_view, true_corners
 
 
@@ -51,6 +51,7 @@ def test_calibration_recovers_the_camera(views):
     assert abs(cam.dist[0] - TRUE_CAMERA.dist[0]) < 0.01 and cam.dist[4] == 0.0  # k3 held at 0
     assert result.rms < 0.1 and result.view_rms.shape == (len(views),) and np.all(result.view_rms < 0.1)
     assert 0 < result.sigma["fx"] < 2 and result.sigma["k3"] == 0.0
+    assert 60 < np.degrees(result.tilt_spread) < 80  # POSES: (25, 25) against (-25, -25) degrees
     # the poses come back: the board's first corner (m), scaled by the square
     assert np.allclose(result.tvecs, [v[3] for v in views], atol=0.005)
     half = calibrate_views([find_chessboard(v[0], COLS, ROWS) for v in views], (640, 480), COLS, ROWS, SQUARE / 2)
@@ -65,6 +66,22 @@ def test_wrong_truth_would_fail(views):
     pts = [true_corners(long, v[2], v[3]) for v in views]
     cam = calibrate_views(pts, (640, 480), COLS, ROWS, SQUARE).camera
     assert abs(cam.fx - 840.0) < 0.5 and abs(cam.fx / TRUE_CAMERA.fx - 1) > 0.04
+
+
+def test_parallel_boards_are_refused():
+    """Boards in parallel planes (here all tilted 30 degrees the same way) fit a wrong focal length
+    (about 1234 px for 800) with a small error and standard deviation: refused, not reported."""
+    pts = [true_corners(TRUE_CAMERA, *pose((30, 0, roll), centre))
+           for roll, centre in ((0, (0, 0, 0.55)), (0, (0.05, 0, 0.6)), (10, (-0.05, 0.02, 0.5)))]
+    with pytest.raises(ValueError, match="do not determine the focal length.*within 0.[0-9] degrees of parallel"):
+        calibrate_views(pts, (640, 480), COLS, ROWS, SQUARE)
+
+
+def test_tilt_spread():
+    rvecs = [pose(tilt, (0, 0, 0.6))[0] for tilt in ((0, 0, 0), (0, 0, 40), (20, 0, 0), (0, -30, 0))]
+    assert tilt_spread(rvecs[:2]) == pytest.approx(0.0, abs=1e-9)
+    assert np.degrees(tilt_spread(rvecs)) == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(20))
+                                                                                * np.cos(np.radians(30)))))
 
 
 @pytest.mark.parametrize("call, needle", [
