@@ -34,6 +34,14 @@ def test_corners_are_found_to_a_tenth_of_a_pixel(views):
         assert err.max() < 0.1, err.max()
 
 
+def test_corners_searched_in_a_shrunk_image_are_refined_on_the_full_one(views):
+    """Large pictures are searched shrunk (the search's cost grows fast with the size): 640 x 480
+    searched at 320 x 240 (squares 20 px wide there) still gives corners to a tenth of a pixel."""
+    for img, truth, _, _ in views[:4]:
+        found = find_chessboard(img, COLS, ROWS, max_side=320)
+        assert found is not None and np.linalg.norm(found - truth, axis=1).max() < 0.1
+
+
 def test_no_board_and_the_wrong_board_give_none(views):
     rng = np.random.default_rng(1)
     noise = rng.integers(0, 256, (480, 640), dtype=np.uint8)
@@ -96,6 +104,7 @@ def test_tilt_spread():
     (lambda pts: find_chessboard(np.zeros((480, 640, 3), np.uint8), COLS, ROWS), "uint8 grey"),
     (lambda pts: find_chessboard(np.zeros((480, 640)), COLS, ROWS), "uint8 grey"),
     (lambda pts: find_chessboard(np.zeros((480, 640), np.uint8), 9.5, ROWS), "whole number"),
+    (lambda pts: find_chessboard(np.zeros((480, 640), np.uint8), COLS, ROWS, max_side=10), "max_side"),
 ])
 def test_bad_input_is_a_value_error(views, call, needle):
     pts = [v[1] for v in views]
