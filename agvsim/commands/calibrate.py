@@ -51,7 +51,7 @@ def register(sub) -> None:
                         "by name, not recursing)")
     p.add_argument("--board", type=board_size, required=True, metavar="COLSxROWS",
                    help="the chessboard's inner corners (where four squares meet), along a row x down a column: "
-                        "9x6 for a board of 10 x 7 squares")
+                        "9x6 for a board of 10 x 7 squares (6x9 finds it too)")
     p.add_argument("--square", type=number(0.0, low_open=True, unit="m"), required=True, metavar="M",
                    help="side of one square in metres, as printed (e.g. 0.025); it scales the board poses, "
                         "not the intrinsics")
