@@ -20,6 +20,8 @@ BENCHMARKS: dict[str, str] = {
     "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes",
     "fuzz": "localizer on random target-free frames: 0 crashes, 0 false detections, p99 ms per frame",
     "filter-soak": "the pose filter under 10^6 odometry increments and hostile frames: P sane, no wrong relocalization",
+    "envelope": "localizer accuracy and speed per camera condition (blur, defocus, motion, sRGB, vignetting, "
+                "JPEG, Bayer, noise, resolution) on independently rendered frames",
 }
 
 

@@ -1,0 +1,281 @@
+"""``agvsim bench envelope``: the localizer over a real camera's envelope, on frames it did not make.
+
+The frames come from :mod:`agvsim.bench.envelope_frames` (a supersampled render of a printed
+target on a cluttered wall, area-averaged to the pixels) through
+:mod:`agvsim.bench.envelope_sensor` (defocus and motion PSFs, vignetting, exposure, flare,
+shot and read noise, clipping, sRGB, Bayer demosaicing, JPEG): none of it from
+:mod:`localizer.synthetic`, whose frames share the localizer's assumptions. Poses: distance
+1.5-5 m, alpha within +-60 deg, the whole print in view.
+
+Per condition (:mod:`agvsim.bench.envelope_conditions`): the target found (a detection within
+2 deg of bearing and 20 % of distance of the truth), false detections, the errors of d (% of
+d), beta and alpha (deg; alpha over targets whose shorter bar is >= 60 rows tall at 512 x 480,
+scaled with fy), the share of errors within 3 sigma of the reported covariance (per axis and
+in 3-D against chi-square 3), and ms per ``detect_targets`` call (``time.perf_counter``, one
+call per frame after an untimed warm-up call). Plus false detections on target-free frames
+(the same pipeline, clutter only) at every resolution run. Every condition of a resolution
+sees the same scenes (frame ``i``'s wall, clutter and pose); a subset of conditions gives
+the same frames as the whole run, so ``--conditions blur2 --frames 5`` reproduces
+the first five ``blur2`` frames of any run with the same seed.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from agvsim.bench.envelope_conditions import (ALPHA_MIN_ROWS, CHI2_3D_3SIGMA, CONDITIONS, FLOORS, GATE_BETA,
+                                              GATE_DISTANCE, NAMES, SPEED_SIZE, parse_conditions)
+from agvsim.bench.floors import floor_line, verdict
+from agvsim.commands._args import number
+
+#: frame indices kept per condition for the report (missed, falsely detected, worst)
+KEEP_FRAMES = 10
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", type=number(1, integer=True), default=100,
+                   help="frames per 512x480 condition, and target-free frames at 512x480 (default 100)")
+    p.add_argument("--hires-frames", type=number(1, integer=True), default=20,
+                   help="frames per larger-sensor condition, and target-free frames at each larger size "
+                        "(default 20: a 2448x2048 frame takes about a second to render)")
+    p.add_argument("--conditions", type=str, default="all",
+                   help=f"comma-separated conditions or all (default all): {', '.join(NAMES)}")
+    p.add_argument("--seed", type=number(0, integer=True), default=0, help="run seed (default 0)")
+    p.add_argument("--method", choices=("exact", "thesis"), default="exact", help="localizer method (default exact)")
+    p.add_argument("--save-frames", type=str, default=None, metavar="DIR",
+                   help="write every frame (PNG) with its truth and detections (JSON) under DIR/<condition>/")
+
+
+def _pct(x) -> float | None:
+    return None if x is None else 100.0 * x
+
+
+class _Tally:
+    """The figures of one condition, frame by frame."""
+
+    def __init__(self, condition, camera):
+        self.condition, self.camera = condition, camera
+        self.rows_min = ALPHA_MIN_ROWS * camera.fy / _thesis_fy()
+        self.frames = self.found = self.false = 0
+        self.missed, self.false_frames = [], []
+        self.err = []  # (d %, beta deg, alpha deg, rows, z_d, z_beta, z_alpha, mahalanobis^2, frame)
+        self.ms = []
+
+    def add(self, index: int, pose, obs, seconds: float) -> None:
+        """Frame ``index``: the truth ``pose``, the detections ``obs`` and the call's ``seconds``."""
+        from agvsim.bench.envelope_frames import bar_rows
+
+        self.frames += 1
+        self.ms.append(1000.0 * seconds)
+        near = [o for o in obs if abs(o.beta - pose.beta) < GATE_BETA
+                and abs(o.distance / pose.distance - 1.0) < GATE_DISTANCE]
+        best = min(near, key=lambda o: abs(o.beta - pose.beta)) if near else None
+        n_false = len(obs) - (best is not None)
+        self.false += n_false
+        if n_false and len(self.false_frames) < KEEP_FRAMES:
+            self.false_frames.append(index)
+        if best is None:
+            if len(self.missed) < KEEP_FRAMES:
+                self.missed.append(index)
+            return
+        self.found += 1
+        e = np.array([best.distance - pose.distance, best.beta - pose.beta,
+                      math.remainder(best.alpha - pose.alpha, 2 * math.pi)])
+        c = np.asarray(best.covariance, float)
+        sd = np.sqrt(np.clip(np.diag(c), 1e-300, None))
+        try:
+            m2 = float(e @ np.linalg.solve(c, e))
+        except np.linalg.LinAlgError:
+            m2 = math.inf
+        if not math.isfinite(m2) or m2 < 0:
+            m2 = math.inf
+        self.err.append((100.0 * abs(e[0]) / pose.distance, math.degrees(abs(e[1])), math.degrees(abs(e[2])),
+                         bar_rows(pose, self.camera), *(np.abs(e) / sd).tolist(), m2, index))
+
+    def report(self) -> dict:
+        s = self.condition.settings
+        out = {"name": self.condition.name, "help": self.condition.help, "size": f"{s.width}x{s.height}",
+               "settings": {k: getattr(s, k) for k in s.__dataclass_fields__},
+               "frames": self.frames, "found": self.found,
+               "detection_pct": _pct(self.found / self.frames) if self.frames else None,
+               "missed_frames": self.missed, "false_detections": self.false, "false_frames": self.false_frames,
+               "alpha_min_rows": self.rows_min}
+        a = np.array([x[:8] for x in self.err], float).reshape(-1, 8)
+        big = a[:, 3] >= self.rows_min
+        have = a.shape[0] > 0
+        out.update({
+            "d_error_pct_mean": float(a[:, 0].mean()) if have else None,
+            "d_error_pct_max": float(a[:, 0].max()) if have else None,
+            "beta_error_deg_mean": float(a[:, 1].mean()) if have else None,
+            "beta_error_deg_max": float(a[:, 1].max()) if have else None,
+            "alpha_frames": int(big.sum()),
+            "alpha_error_deg_mean": float(a[big, 2].mean()) if big.any() else None,
+            "alpha_error_deg_max": float(a[big, 2].max()) if big.any() else None,
+            "alpha_error_deg_max_all_sizes": float(a[:, 2].max()) if have else None,
+            "within_3sigma_pct": {k: (_pct(float((a[:, i] <= 3.0).mean())) if have else None)
+                                  for k, i in (("d", 4), ("beta", 5), ("alpha", 6))},
+            "worst_error_in_sigmas": {k: (float(a[:, i].max()) if have else None)
+                                      for k, i in (("d", 4), ("beta", 5), ("alpha", 6))},
+            "worst_d_frame": int(self.err[int(np.argmax(a[:, 0]))][8]) if have else None,
+            "ms_median": float(np.median(self.ms)) if self.ms else None,
+            "ms_p99": float(np.percentile(self.ms, 99)) if self.ms else None,
+            "ms_max": float(np.max(self.ms)) if self.ms else None,
+        })
+        out["within_3sigma_pct"]["mahalanobis_3d"] = _pct(float((a[:, 7] <= CHI2_3D_3SIGMA).mean())) if have else None
+        w = [v for v in out["within_3sigma_pct"].values() if v is not None]
+        out["within_3sigma_pct_worst"] = min(w) if len(w) == 4 else None
+        out["floors"] = _floors(out, (s.width, s.height))
+        return out
+
+
+def _thesis_fy() -> float:
+    from localizer import Camera
+
+    return Camera.thesis(16.0).fy
+
+
+def _floors(r: dict, size: tuple[int, int]) -> dict:
+    values = {"detection_pct": r["detection_pct"], "d_error_pct_mean": r["d_error_pct_mean"],
+              "d_error_pct_max": r["d_error_pct_max"], "alpha_error_deg_mean": r["alpha_error_deg_mean"],
+              "alpha_error_deg_max": r["alpha_error_deg_max"], "within_3sigma_pct": r["within_3sigma_pct_worst"],
+              "false_detections": r["false_detections"], "ms_median": r["ms_median"], "ms_p99": r["ms_p99"],
+              "ms_median_2448": r["ms_median"]}
+    out = {}
+    for key, (op, limit, unit, _) in FLOORS.items():
+        if key in SPEED_SIZE and SPEED_SIZE[key] != size:
+            continue
+        if key.startswith("alpha") and r["found"] and not r["alpha_frames"]:
+            continue  # targets found, none of them tall enough for the alpha floors
+        out[key] = verdict(values[key], op, limit, unit)
+    return out
+
+
+def _save(folder, name: str, index: int, frame, obs) -> None:
+    from pathlib import Path
+
+    from agvsim.bench.envelope_frames import truth_dict
+    from agvsim.commands._args import write_image
+
+    d = Path(folder) / name
+    write_image(d / f"{index:04d}.png", frame.image, "--save-frames")
+    truth = truth_dict(frame)
+    truth["detections"] = [o.to_dict() for o in obs]
+    (d / f"{index:04d}.json").write_text(json.dumps(truth, indent=1, default=float), encoding="utf-8")
+
+
+def _progress(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def run(args) -> dict:
+    from localizer import detect_targets
+
+    from agvsim.bench.envelope_frames import expose_frame, render_scene
+
+    conditions = parse_conditions(args.conditions)
+    sizes: dict[tuple[int, int], list] = {}
+    for c in conditions:
+        sizes.setdefault((c.settings.width, c.settings.height), []).append(c)
+    t_start = time.perf_counter()
+    result: dict = {"method": args.method, "seed": args.seed, "conditions": [], "target_free": {}}
+    reports = {}
+    for (w, h), conds in sizes.items():
+        n = args.frames if (w, h) == (512, 480) else args.hires_frames
+        tallies = {}
+        for i in range(n):
+            rendered = render_scene(w, h, args.seed, i)
+            for c in conds:
+                frame = expose_frame(c.settings, rendered)
+                tally = tallies.get(c.name)
+                if tally is None:  # the warm-up call (kernel load, first-size caches): not timed
+                    tally = tallies[c.name] = _Tally(c, frame.camera)
+                    detect_targets(frame.image, frame.camera, method=args.method)
+                t0 = time.perf_counter()
+                obs = detect_targets(frame.image, frame.camera, method=args.method)
+                dt = time.perf_counter() - t0
+                tally.add(i, rendered.scene.pose, obs, dt)
+                if args.save_frames:
+                    _save(args.save_frames, c.name, i, frame, obs)
+            if (i + 1) % max(1, n // 5) == 0:
+                _progress(f"envelope {w}x{h}: {i + 1}/{n} frames ({time.perf_counter() - t_start:.0f} s)")
+        for name, tally in tallies.items():
+            reports[name] = tally.report()
+        free = {"frames": 0, "false_detections": 0, "false_frames": [], "conditions": [c.name for c in conds]}
+        for i in range(n):  # target-free frames, the conditions of this size in turn
+            c = conds[i % len(conds)]
+            frame = expose_frame(c.settings, render_scene(w, h, args.seed, i, with_target=False))
+            obs = detect_targets(frame.image, frame.camera, method=args.method)
+            free["frames"] += 1
+            free["false_detections"] += len(obs)
+            if obs and len(free["false_frames"]) < KEEP_FRAMES:
+                free["false_frames"].append({"frame": i, "condition": c.name, "detections": len(obs)})
+            if args.save_frames:
+                _save(args.save_frames, f"target_free_{w}x{h}", i, frame, obs)
+        free["floor"] = verdict(free["false_detections"], "<=", 0.0)
+        result["target_free"][f"{w}x{h}"] = free
+        _progress(f"envelope {w}x{h}: target-free frames done ({time.perf_counter() - t_start:.0f} s)")
+    result["conditions"] = [reports[c.name] for c in conditions]
+    result["floors"] = summary_floors(result)
+    result["seconds"] = time.perf_counter() - t_start
+    return result
+
+
+def summary_floors(result: dict) -> dict:
+    """Each floor over every condition it applies to: the worst value, met only if met in
+    every one, and the conditions that miss it (name -> value)."""
+    out = {}
+    for key, (op, limit, unit, what) in FLOORS.items():
+        rows = [(r["name"], r["floors"][key]) for r in result["conditions"] if key in r["floors"]]
+        if not rows:
+            continue
+        vals = [f["value"] for _, f in rows if f["value"] is not None]
+        worst = None if len(vals) < len(rows) else (min(vals) if op == ">=" else max(vals))
+        v = verdict(worst, op, limit, unit)
+        v["failing"] = {name: f["value"] for name, f in rows if not f["met"]}
+        v["what"] = what
+        out[key] = v
+    free = result["target_free"]
+    if free:
+        total = sum(f["false_detections"] for f in free.values())
+        v = verdict(total, "<=", 0.0)
+        v["failing"] = {size: f["false_detections"] for size, f in free.items() if f["false_detections"]}
+        v["what"] = "false detections on target-free frames"
+        out["target_free_false_detections"] = v
+    return out
+
+
+def _f(x, spec: str = ".2f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def format_table(r: dict) -> str:
+    m = r["machine"]
+    lines = [f"machine: {m.get('cpu_model')} ({m.get('cpu_count')} cpus), python {m.get('python')}",
+             f"localizer over a real camera's envelope (independent frames), method {r['method']}, seed {r['seed']}, "
+             f"{r['seconds']:.0f} s",
+             f"{'condition':<12} {'size':>9} {'found':>9} {'false':>5} {'d% mean/max':>12} {'beta deg':>12} "
+             f"{'alpha deg [n]':>17} {'3sigma% d/b/a/3D':>18} {'ms med/p99':>12}"]
+    for c in r["conditions"]:
+        w3 = c["within_3sigma_pct"]
+        lines.append(
+            f"{c['name']:<12} {c['size']:>9} {c['found']:>4}/{c['frames']:<4} {c['false_detections']:>5} "
+            f"{_f(c['d_error_pct_mean']):>6}/{_f(c['d_error_pct_max']):<5} "
+            f"{_f(c['beta_error_deg_mean'], '.3f'):>6}/{_f(c['beta_error_deg_max'], '.3f'):<5} "
+            f"{_f(c['alpha_error_deg_mean']):>6}/{_f(c['alpha_error_deg_max']):<5} [{c['alpha_frames']:>3}] "
+            f"{_f(w3['d'], '.0f'):>4}/{_f(w3['beta'], '.0f'):>3}/{_f(w3['alpha'], '.0f'):>3}/"
+            f"{_f(w3['mahalanobis_3d'], '.0f'):>3}  "
+            f"{_f(c['ms_median']):>5}/{_f(c['ms_p99'])}")
+    for size, f in r["target_free"].items():
+        lines.append(f"target-free frames {size}: {f['false_detections']} false detections in {f['frames']} frames"
+                     + (f" (e.g. frames {', '.join(str(x['frame']) for x in f['false_frames'])})"
+                        if f["false_frames"] else ""))
+    for key, f in r["floors"].items():
+        fail = f.get("failing") or {}
+        note = ("failing: " + ", ".join(f"{k} {_f(v, '.3g')}" for k, v in fail.items())) if fail else ""
+        lines.append(floor_line(f"{f['what']}, worst", f, ".3g", note))
+    return "\n".join(lines)
