@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from agvsim.commands._output import clean_json
+from agvsim.commands._output import JSON_DIGITS, clean_json
 from agvsim.commands.frames import Frame
 
 __all__ = ["COLUMNS", "FORMATS", "VIDEO_WRITERS", "FrameAnnotator", "RowWriter", "format_for", "rows_for"]
@@ -107,7 +107,8 @@ class RowWriter:
 
 
 def _csv_value(value):
-    return repr(value) if isinstance(value, float) else value
+    """A float with the digits of the JSON lines (:data:`agvsim.commands._output.JSON_DIGITS`)."""
+    return f"{value:.{JSON_DIGITS}g}" if isinstance(value, float) else value
 
 
 class FrameAnnotator:
