@@ -3,6 +3,7 @@ and report d, β, α of each (a table, one JSON object, or rows as CSV / JSON li
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from agvsim.commands._args import number
@@ -109,18 +110,24 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(bad[0].error + more)
     _check_videos(inputs, base, args.camera)
     streams = [i for i in inputs if i.is_stream]
+    if args.annotate and streams and len(inputs) != 1:
+        raise ValueError(f"--annotate {args.annotate!r} with a folder or a video: expected that one input, "
+                         f"got {len(inputs)} inputs")
+    if args.annotate and not streams:  # a name OpenCV cannot write fails before any work
+        image_writer(_annotate_path(args.annotate, 0, len(inputs)), "--annotate")
+    writer = RowWriter(args.out, fmt) if fmt else None
     annotator = None
     if args.annotate and streams:
-        if len(inputs) != 1:
-            raise ValueError(f"--annotate {args.annotate!r} with a folder or a video: expected that one input, "
-                             f"got {len(inputs)} inputs")
-        annotator = FrameAnnotator(args.annotate, streams[0].kind, streams[0].size, streams[0].fps or args.fps)
-    elif args.annotate:  # a name OpenCV cannot write fails before any work
-        image_writer(_annotate_path(args.annotate, 0, len(inputs)), "--annotate")
+        try:
+            annotator = FrameAnnotator(args.annotate, streams[0].kind, streams[0].size, streams[0].fps or args.fps)
+        except (ValueError, OSError):
+            if writer is not None and args.out:  # (nothing is left behind by a run that did not start)
+                writer.close()
+                os.remove(args.out)
+            raise
     for inp in streams:
         if inp.skipped:
             log(f"{inp.path}: {plural(inp.skipped, 'entry', 'entries')} skipped (not image files)")
-    writer = RowWriter(args.out, fmt) if fmt else None
     run_ = _Run(args, base, target, inputs, writer, annotator)
     try:
         run_.all()

@@ -255,6 +255,7 @@ def test_a_video_of_another_size_is_one_line_before_any_work_and_a_calibration_o
     (["VIDEO", "--format", "csv", "--json"], ["--json", "--format", "--out FILE"]),
     (["VIDEO", "VIDEO", "--annotate", "a.avi"], ["--annotate", "that one input", "got 2"]),
     (["VIDEO", "--annotate", "a.png"], ["--annotate", "a.png", "video file name", ".avi"]),
+    (["VIDEO", "--out", "rows.csv", "--annotate", "a.png"], ["--annotate", "a.png", "video file name"]),
     (["VIDEO", "--fps", "0"], ["--fps", "> 0 (Hz)"]),
 ])
 def test_bad_input_is_one_line_and_nothing_written(argv, needles, video, tmp_path, capsys, monkeypatch):
