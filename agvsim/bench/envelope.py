@@ -38,11 +38,11 @@ KEEP_FRAMES = 10
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--frames", type=number(1, integer=True), default=100,
-                   help="frames per 512x480 condition, and target-free frames at 512x480 (default 100)")
-    p.add_argument("--hires-frames", type=number(1, integer=True), default=20,
+    p.add_argument("--frames", type=number(1, integer=True), default=300,
+                   help="frames per 512x480 condition, and target-free frames at 512x480 (default 300)")
+    p.add_argument("--hires-frames", type=number(1, integer=True), default=40,
                    help="frames per larger-sensor condition, and target-free frames at each larger size "
-                        "(default 20: a 2448x2048 frame takes about a second to render)")
+                        "(default 40: a 2448x2048 frame takes about a second to render)")
     p.add_argument("--conditions", type=str, default="all",
                    help=f"comma-separated conditions or all (default all): {', '.join(NAMES)}")
     p.add_argument("--seed", type=number(0, integer=True), default=0, help="run seed (default 0)")
@@ -270,6 +270,10 @@ def format_table(r: dict) -> str:
             f"{_f(w3['d'], '.0f'):>4}/{_f(w3['beta'], '.0f'):>3}/{_f(w3['alpha'], '.0f'):>3}/"
             f"{_f(w3['mahalanobis_3d'], '.0f'):>3}  "
             f"{_f(c['ms_median']):>5}/{_f(c['ms_p99'])}")
+    for c in r["conditions"]:
+        if c["missed_frames"] or c["false_frames"]:
+            lines.append(f"  {c['name']}: missed frames {c['missed_frames'] or '-'}, frames with a false detection "
+                         f"{c['false_frames'] or '-'} (first {KEEP_FRAMES} of each)")
     for size, f in r["target_free"].items():
         lines.append(f"target-free frames {size}: {f['false_detections']} false detections in {f['frames']} frames"
                      + (f" (e.g. frames {', '.join(str(x['frame']) for x in f['false_frames'])})"

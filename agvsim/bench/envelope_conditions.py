@@ -23,7 +23,7 @@ class Condition:
 
 
 CONDITIONS: tuple[Condition, ...] = (
-    Condition("baseline", "512x480, Gaussian sd 0.5 px, linear, mild noise", FrameSettings()),
+    Condition("baseline", "512x480, Gaussian sd 0.5 px, linear, noise sd ~2.5 codes on the paper", FrameSettings()),
     Condition("blur1", "Gaussian sd 1 px", FrameSettings(blur=1.0)),
     Condition("blur2", "Gaussian sd 2 px", FrameSettings(blur=2.0)),
     Condition("blur3", "Gaussian sd 3 px", FrameSettings(blur=3.0)),
@@ -37,7 +37,9 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition("bayer", "RGGB Bayer mosaic, OpenCV demosaicing", FrameSettings(bayer=True)),
     Condition("dim", "quarter exposure at 4x gain (paper at ~55 codes)",
               FrameSettings(white_level=0.25, full_well=2000.0, read_noise=2.0)),
-    Condition("noisy", "shot noise of 1000 e- at full scale, read noise 4 codes",
+    Condition("noisy", "noise sd ~5 codes on the paper (2000 e- at full scale, read noise 2 codes)",
+              FrameSettings(full_well=2000.0, read_noise=2.0)),
+    Condition("very_noisy", "noise sd ~8 codes on the paper (1000 e- at full scale, read noise 4 codes)",
               FrameSettings(full_well=1000.0, read_noise=4.0)),
     Condition("flare", "veiling glare of 20 % of full scale", FrameSettings(flare=0.2)),
     Condition("saturated", "overexposed: paper clipped", FrameSettings(white_level=1.5)),
