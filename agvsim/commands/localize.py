@@ -18,11 +18,13 @@ def register(sub) -> None:
     p = sub.add_parser("localize", help="localize two-bar targets in image files, folders of frames or videos",
                        description="Find the thesis's two-bar targets in image files, folders of frames or video "
                                    "files and print the distance d, orientation alpha and bearing beta of each. "
-                                   "With --out or --format: one row per frame and target (SI: m, rad).")
+                                   "With --out or --format: one row per frame and target (SI: m, rad); "
+                                   "--json with --out prints the run's summary.")
     p.add_argument("images", nargs="+", metavar="INPUT",
                    help="image files (PNG, JPEG, ...), folders of frames (their image files in name order) or "
-                        "video files (anything OpenCV opens: .mp4, .avi, .mkv, ...); one that cannot be read, and "
-                        "every frame that fails, is reported and the others localized (exit status 2)")
+                        "video files (anything OpenCV opens: .mp4, .avi, .mkv, ...); every frame that fails is "
+                        "reported and the others localized (exit status 2); a path that is none of these too, "
+                        "but with --out or --format it stops the run before it starts")
     cam = p.add_mutually_exclusive_group()
     cam.add_argument("--lens", type=number(0.0, low_open=True, unit="mm"), default=16.0, metavar="MM",
                      help="thesis camera (512x480) with this focal length in mm (default 16); an image file of "
