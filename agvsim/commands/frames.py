@@ -134,9 +134,11 @@ class Input:
         try:
             index = 0
             pending: list[int] = []  # failed reads not yet known to lie before a frame
-            while self.count is None or index < self.count:
+            while True:
                 ok, raw = cap.read()
                 if not ok:
+                    if self.count is not None and index >= self.count:
+                        break  # the end, where the header says (a header counting short is read past)
                     pending.append(index)
                     index += 1
                     if len(pending) >= _MAX_FAILED_READS:

@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
         if writer is None:
             run_.report(interrupted=True)
         where = (f"the {plural(writer.rows, 'row')} in {args.out or 'stdout'} are complete" if writer
-                 else "the results so far are above")
+                 else "the frames done are printed")
         log(f"agvsim localize: interrupted after {plural(run_.frames, 'frame')}; {where}"
             + (f"; {annotator.out} holds {plural(annotator.frames, 'annotated frame')}" if annotator else ""))
         return 130
@@ -155,8 +155,8 @@ class _Run:
         self.writer, self.annotator = writer, annotator
         self.frames = self.read = self.failed = self.with_targets = self.targets = 0
         self.failures: list[str] = []
-        self.results: list[dict] = []  # (the table or JSON: without --out/--format)
-        self.labels: list[str] = []  # (the table's names: a video's frames as VIDEO#INDEX)
+        self.results: list[dict] = []  # (the JSON without --out/--format)
+        self.table = writer is None and not args.json  # (the human table: printed frame by frame)
         self.only_images = all(i.kind != "folder" and i.kind != "video" for i in inputs)
         self.bar = None
 
@@ -164,6 +164,8 @@ class _Run:
         from tqdm import tqdm
 
         image_index = 0
+        if self.table:
+            print(_TABLE_HEADER, flush=True)
         for n, inp in enumerate(self.inputs):
             self.bar = tqdm(total=inp.count, desc=inp.path[-30:], unit="frame", file=sys.stderr, leave=False,
                             disable=self.args.no_progress or not inp.is_stream, dynamic_ncols=True)
@@ -232,9 +234,12 @@ class _Run:
                 self._annotate_image(frame, obs, n)
         if self.writer is not None:
             self.writer.write(rows_for(frame, obs))
+        elif self.table:
+            label = f"{frame.source}#{frame.index}" if kind == "video" else frame.source
+            for line in _table_lines(self._result(frame, obs, ms, stream), label):
+                self._tell(line, sys.stdout)
         else:
             self.results.append(self._result(frame, obs, ms, stream))
-            self.labels.append(f"{frame.source}#{frame.index}" if kind == "video" else frame.source)
 
     def _annotate_image(self, frame, obs, n: int) -> None:
         from agvsim.commands._args import write_image
@@ -244,9 +249,12 @@ class _Run:
                           "--annotate")
         self._tell(f"wrote {out}")
 
-    def _tell(self, line: str) -> None:
+    def _tell(self, line: str, file=None) -> None:
+        """``line`` on stderr (or ``file``), above the progress bar."""
         if self.bar is not None and not self.bar.disable:
-            self.bar.write(line, file=sys.stderr)
+            self.bar.write(line, file=file or sys.stderr)
+        elif file is not None:
+            print(line, file=file, flush=True)
         else:
             log(line)
 
@@ -278,8 +286,6 @@ class _Run:
             emit_json({"ok": not self.failed and not interrupted, "method": args.method, "camera": camera,
                        **({"interrupted": True} if interrupted else {}), "summary": self.summary(),
                        "results": self.results})
-        elif self.writer is None:
-            _print_table(self.results, self.labels)
         if interrupted:
             return
         if self.only_images and self.writer is None:
@@ -298,20 +304,20 @@ class _Run:
                                   for i in self.inputs]})
 
 
-def _print_table(results: list[dict], labels: list[str]) -> None:
+_TABLE_HEADER = (f"{'image':<28} {'#':>2} {'d (m)':>8} {'alpha':>7} {'beta':>7} {'sd d':>7} {'sd a':>6} "
+                 f"{'polarity':>9} {'ms':>6}")
+
+
+def _table_lines(r: dict, label: str) -> list[str]:
+    """The human table's lines for one frame's result (degrees)."""
     import math
 
-    print(f"{'image':<28} {'#':>2} {'d (m)':>8} {'alpha':>7} {'beta':>7} {'sd d':>7} {'sd a':>6} "
-          f"{'polarity':>9} {'ms':>6}")
-    for r, label in zip(results, labels):
-        name = label[-28:]
-        if "error" in r:
-            print(f"{name:<28} {'-':>2} error: {r['error']}")
-            continue
-        if not r["targets"]:
-            print(f"{name:<28} {'-':>2} {'no target':>8} {'':>7} {'':>7} {'':>7} {'':>6} {'':>9} "
-                  f"{r['ms_per_frame']:6.2f}")
-        for k, t in enumerate(r["targets"]):
-            print(f"{name:<28} {k + 1:>2} {t['distance_m']:8.3f} {t['alpha_deg']:7.2f} "
-                  f"{t['beta_deg']:7.2f} {t['sigma']['distance_m']:7.3f} "
-                  f"{math.degrees(t['sigma']['alpha_rad']):6.2f} {t['polarity']:>9} {r['ms_per_frame']:6.2f}")
+    name = label[-28:]
+    if "error" in r:
+        return [f"{name:<28} {'-':>2} error: {r['error']}"]
+    if not r["targets"]:
+        return [f"{name:<28} {'-':>2} {'no target':>8} {'':>7} {'':>7} {'':>7} {'':>6} {'':>9} "
+                f"{r['ms_per_frame']:6.2f}"]
+    return [f"{name:<28} {k + 1:>2} {t['distance_m']:8.3f} {t['alpha_deg']:7.2f} {t['beta_deg']:7.2f} "
+            f"{t['sigma']['distance_m']:7.3f} {math.degrees(t['sigma']['alpha_rad']):6.2f} {t['polarity']:>9} "
+            f"{r['ms_per_frame']:6.2f}" for k, t in enumerate(r["targets"])]

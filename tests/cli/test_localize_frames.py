@@ -289,6 +289,10 @@ def test_ctrl_c_keeps_the_rows_of_the_frames_done(video, tmp_path, capsys, monke
     rows = _csv_rows(out.read_text())
     assert [r["frame"] for r in rows] == ["0", "1", "3", "3"]  # frames 0-3 whole (frame 2 has no target)
     assert f"the {len(rows)} rows in {out} are complete" in lines[0]
+    calls.clear()  # the table: printed frame by frame, so the frames done are there
+    rc, table, err = _run(["localize", str(video), "--no-progress"], capsys)
+    assert rc == 130 and "interrupted after 4 frames" in err
+    assert [ln.split()[0][-2:] for ln in table.splitlines()[1:]] == ["#0", "#1", "#2", "#3", "#3"]
 
 
 @pytest.mark.slow
