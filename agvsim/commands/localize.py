@@ -12,6 +12,8 @@ from localizer.params import METHODS
 
 #: failures told one by one on stderr (the rest are counted in the summary)
 _TOLD_FAILURES = 10
+#: failures listed in the summary of --json with --out (the rows have them all)
+_KEPT_FAILURES = 100
 
 
 def register(sub) -> None:
@@ -154,7 +156,8 @@ class _Run:
         self.args, self.base, self.target, self.inputs = args, base, target, inputs
         self.writer, self.annotator = writer, annotator
         self.frames = self.read = self.failed = self.with_targets = self.targets = 0
-        self.failures: list[str] = []
+        self.failed_items = 0  # (failed frames told: a video cut short is one item)
+        self.failures: list[str] = []  # (the first of them, for --json)
         self.results: list[dict] = []  # (the JSON without --out/--format)
         self.table = writer is None and not args.json  # (the human table: printed frame by frame)
         self.only_images = all(i.kind != "folder" and i.kind != "video" for i in inputs)
@@ -221,11 +224,13 @@ class _Run:
             self.annotator.add(frame, obs)
         if frame.error is not None:
             self.failed += frame.count
-            if len(self.failures) < _TOLD_FAILURES:
+            self.failed_items += 1
+            if self.failed_items <= _TOLD_FAILURES:
                 self._tell(f"agvsim localize: error: {frame.error}")
-            elif len(self.failures) == _TOLD_FAILURES:
+            elif self.failed_items == _TOLD_FAILURES + 1:
                 self._tell("agvsim localize: further failed frames are counted in the summary")
-            self.failures.append(frame.error)
+            if len(self.failures) < _KEPT_FAILURES:
+                self.failures.append(frame.error)
         else:
             self.read += 1
             self.with_targets += bool(obs)
@@ -299,7 +304,7 @@ class _Run:
                if self.annotator else ""))
         if self.writer is not None and args.json:
             emit_json({"ok": not self.failed, "method": args.method, "camera": camera, "out": args.out,
-                       "rows": self.writer.rows, **self.summary(), "failures": self.failures[:100],
+                       "rows": self.writer.rows, **self.summary(), "failures": self.failures,
                        "inputs": [{"path": i.path, "kind": i.kind, "frames": i.count, "skipped": i.skipped}
                                   for i in self.inputs]})
 

@@ -145,6 +145,19 @@ def test_folder_rows_as_jsonl_in_name_order_with_failed_and_skipped_files(folder
     assert all(r["source"] == str(files[r["frame"]]) for r in rows if not r["error"])
 
 
+def test_many_failed_frames_are_told_ten_times_and_all_written(tmp_path, capsys):
+    d = tmp_path / "small"
+    d.mkdir()
+    for i in range(13):
+        cv2.imwrite(str(d / f"f{i:02d}.png"), np.full((240, 320), 128, np.uint8))
+    rc, stdout, err = _run(["localize", str(d), "--format", "csv", "--no-progress"], capsys)
+    rows = _csv_rows(stdout)
+    assert rc == 2 and [r["frame"] for r in rows] == [str(i) for i in range(13)] and all(r["error"] for r in rows)
+    lines = err.strip().splitlines()
+    assert sum("error:" in ln for ln in lines) == 10 and "further failed frames are counted" in lines[10]
+    assert lines[-1].endswith("13 frames: 0 read, 13 failed, 0 with targets (0 targets)")
+
+
 def test_a_frame_the_decoder_cannot_read_and_a_video_cut_short_are_failed_frames(tmp_path, capsys):
     good = _write_video(tmp_path / "good.avi", _frames())
     data = bytearray(good.read_bytes())
