@@ -116,7 +116,8 @@ class FrameAnnotator:
     (``out`` a video file of :data:`VIDEO_WRITERS`, the input's size and frame rate).
 
     Raises:
-        ValueError: ``out`` is not what the input needs, or OpenCV cannot write it (before any work).
+        ValueError: ``out`` is not what the input needs (before any work).
+        OSError: OpenCV cannot write a video there.
     """
 
     def __init__(self, out: str, kind: str, size: tuple[int, int] | None = None, fps: float | None = None) -> None:

@@ -117,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
     if args.annotate and streams and len(inputs) != 1:
         raise ValueError(f"--annotate {args.annotate!r} with a folder or a video: expected that one input, "
                          f"got {len(inputs)} inputs")
+    if args.annotate and streams and os.path.realpath(args.annotate) == os.path.realpath(streams[0].path):
+        raise ValueError(f"--annotate {args.annotate!r}: the input itself; expected another name (the input is "
+                         "read, never written)")
     if args.annotate and not streams:  # a name OpenCV cannot write fails before any work
         image_writer(_annotate_path(args.annotate, 0, len(inputs)), "--annotate")
     writer = RowWriter(args.out, fmt) if fmt else None

@@ -270,16 +270,21 @@ def test_a_video_of_another_size_is_one_line_before_any_work_and_a_calibration_o
     (["VIDEO", "--annotate", "a.png"], ["--annotate", "a.png", "video file name", ".avi"]),
     (["VIDEO", "--out", "rows.csv", "--annotate", "a.png"], ["--annotate", "a.png", "video file name"]),
     (["VIDEO", "--fps", "0"], ["--fps", "> 0 (Hz)"]),
+    (["VIDEO", "--annotate", "VIDEO"], ["--annotate", "the input itself"]),
+    (["FOLDER", "--annotate", "FOLDER/"], ["--annotate", "the input itself"]),
 ])
-def test_bad_input_is_one_line_and_nothing_written(argv, needles, video, tmp_path, capsys, monkeypatch):
+def test_bad_input_is_one_line_and_nothing_written(argv, needles, video, folder, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "notes.txt").write_text("hello\n")
-    rc, out, err = _run(["localize"] + [str(video) if a == "VIDEO" else a for a in argv], capsys)
+    frames = sorted(p.name for p in folder.iterdir())
+    argv = [a.replace("VIDEO", str(video)).replace("FOLDER", folder.name) for a in argv]
+    rc, out, err = _run(["localize"] + argv, capsys)
     lines = err.strip().splitlines()
     assert rc == 2 and len(lines) == 1 and "Traceback" not in err and out == "", err
     for n in needles:
         assert n in lines[0], (n, lines[0])
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [folder.name, "notes.txt"]
+    assert sorted(p.name for p in folder.iterdir()) == frames
 
 
 def test_ctrl_c_keeps_the_rows_of_the_frames_done(video, tmp_path, capsys, monkeypatch):
