@@ -231,8 +231,8 @@ def test_annotate_a_video_and_a_folder(video, folder, tmp_path, capsys):
 
 
 def test_the_table_and_json_list_every_frame(video, folder, capsys):
-    rc, out, _ = _run(["localize", str(video)], capsys)
-    assert rc == 0
+    rc, out, err = _run(["localize", str(video)], capsys)
+    assert rc == 0 and f"/{len(SCENES)} [" in err and "frame/s" in err  # the progress bar, on stderr
     lines = out.splitlines()
     assert lines[0].startswith("image") and len(lines) == 1 + 1 + sum(len(s) for s in SCENES)  # + empty frame
     assert f"{video}#2"[-28:] in out and "no target" in out and "positive" in out
