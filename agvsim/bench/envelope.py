@@ -234,8 +234,9 @@ def summary_floors(result: dict) -> dict:
         if not rows:
             continue
         vals = [f["value"] for _, f in rows if f["value"] is not None]
-        worst = None if len(vals) < len(rows) else (min(vals) if op == ">=" else max(vals))
-        v = verdict(worst, op, limit, unit)
+        worst = (min(vals) if op == ">=" else max(vals)) if vals else None
+        v = verdict(worst, op, limit, unit)  # the worst value there is; a condition without one fails
+        v["met"] = v["met"] and len(vals) == len(rows)
         v["failing"] = {name: f["value"] for name, f in rows if not f["met"]}
         v["what"] = what
         out[key] = v
