@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 
+from localizer._kernels.clipped import SIGMA_BLURRED
+from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
 from localizer.exact_pose import exact_measure, exact_pose
@@ -177,7 +179,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
         uncertain = bool(abs(c[2, 2]) > WIDE_SD_ALPHA ** 2 or abs(c[0, 0]) > (WIDE_SD_RANGE * est.distance) ** 2)
         if p.photometric == "all" or saturated or (p.photometric == "auto" and uncertain):
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
-            est = _photometric(img, camera, target, v, est, uncertain and saturated)
+            est = _photometric(img, camera, target, v, est, uncertain and saturated, _blur_sd(img, v))
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
         est = None
@@ -190,7 +192,14 @@ def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) ->
                         float(p.width_slack), float(p.min_rows))
 
 
-def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool):
+def _blur_sd(img: np.ndarray, v) -> float:
+    """The blur sd (px) of the verified stack ``v``'s row-mean profile on the rows its vertical
+    edges are measured on (:func:`localizer._kernels.subpixel.rows_blur`)."""
+    bounds = np.asarray(v.bounds, np.float64)
+    return float(rows_blur(img, edge_rows(img, v.rows, bounds), bounds))
+
+
+def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool, blur: float):
     """The edge-based pose ``est`` refined on the target's pixels (:mod:`localizer.photometric`),
     from several starts when ``wide``.
 
@@ -198,10 +207,15 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
     own normal matrix blind to the directions in which clipped edges can slide, and on the
     others its pixel-level model error (background bleeding into the margin, the blur
     model) is not in it; the edge-based covariance (with its per-edge floor for clipped
-    pixels) is the conservative statement."""
+    pixels) is the conservative statement. On a blurred target (``blur``, the row-mean
+    profile's sd, px, at least :data:`~localizer._kernels.clipped.SIGMA_BLURRED`) the fit starts
+    from that blur, and the difference ``dv`` between the two estimates is added to the
+    covariance (``+ dv dv^T``): the two models of its edges (a Gaussian blur in both) disagree
+    by more than the edges' noise where the blur is as wide as a bar."""
     alt = [a for a in est.alpha_candidates if abs(a - est.alpha) > 0.01]
+    blurred = blur >= SIGMA_BLURRED
     r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive), float(v.dark),
-                    float(v.bright), alt_alpha=alt[0] if alt else None, wide=wide)
+                    float(v.bright), sigma=blur if blurred else 0.4, alt_alpha=alt[0] if alt else None, wide=wide)
     if r is None:
         return est
     X, Z, alpha, Y = (float(x) for x in r[0][:4])
@@ -213,7 +227,10 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
     dv = np.array([d - est.distance, beta - est.beta, alpha - est.alpha])
     if not float(dv @ np.linalg.solve(est.covariance, dv)) <= PHOTOMETRIC_GATE ** 2:
         return est
-    return dataclasses.replace(est, distance=d, beta=beta, alpha=alpha, z=Z, x=X, height=Y)
+    cov = est.covariance
+    if blurred:  # two models of a blurred target's edges that disagree: at least as uncertain as their difference
+        cov = cov + np.outer(dv, dv)
+    return dataclasses.replace(est, distance=d, beta=beta, alpha=alpha, z=Z, x=X, height=Y, covariance=cov)
 
 
 def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,

@@ -24,8 +24,8 @@ def edge_inputs(image: np.ndarray, st: Stack) -> tuple[np.ndarray, np.ndarray, n
     the stack's rows but the first and last eighth (blur, slanted tops), its median run
     boundaries and its rough bar ends (top, bottom row per bar; found at the rough bar
     centres for a stack that was not verified)."""
-    rows = edge_rows(st.rows)
     bounds = np.asarray(st.bounds, np.float64)
+    rows = edge_rows(image, st.rows, bounds)
     ends = st.ends
     if not ends:
         thr = 0.5 * (st.dark + st.bright)

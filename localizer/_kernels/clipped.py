@@ -27,6 +27,35 @@ E_STARTS = (0.0, 0.4)
 SIGMA_MIN = 0.3
 #: narrowest mean run (px) of a target for the clipped-erf fit
 BAR_MIN = 8.0
+#: blur sd (px, :func:`profile_blur`) from which an unclipped target's edges are fitted too: its
+#: centroid windows (11 px) then take in the tails of the neighbouring edges
+SIGMA_BLURRED = 1.2
+
+
+@jit
+def profile_blur(prof, a, e_init, positive):
+    """Blur sd (px) of the row-mean profile ``prof`` (first pixel at column ``a``) of a target
+    with edges near ``e_init`` (4,): ``C / (sqrt(2 pi) g)`` with ``C`` the contrast between the
+    gap's and the bars' middle pixels and ``g`` the mean over the two inner edges of the
+    steepest change between neighbouring profile pixels within 3 px (a Gaussian-blurred step
+    of box pixels; a sharp edge gives about 0.4)."""
+    n = prof.size
+    cg = int(round(0.5 * (e_init[1] + e_init[2]))) - a
+    c0 = int(round(0.5 * (e_init[0] + e_init[1]))) - a
+    c1 = int(round(0.5 * (e_init[2] + e_init[3]))) - a
+    if not (0 <= c0 < n and 0 <= cg < n and 0 <= c1 < n):
+        return 0.0
+    contrast = abs(prof[cg] - 0.5 * (prof[c0] + prof[c1]))
+    g = 0.0
+    for k in (1, 2):
+        gk = 0.0
+        e = int(round(e_init[k])) - a
+        for i in range(max(e - 3, 0), min(e + 3, n - 1)):
+            gk = max(gk, abs(prof[i + 1] - prof[i]))
+        g += 0.5 * gk
+    if g <= 0.0:
+        return 0.0
+    return contrast / (math.sqrt(2.0 * math.pi) * g)
 
 
 @jit
@@ -118,16 +147,30 @@ def fit_bar_profile(image, rows, bounds, e_init, positive):
         prof[i] /= rows.size
         pmax = max(pmax, prof[i])
         pmin = min(pmin, prof[i])
-    if pmax < CLIP:
+    clipped = pmax >= CLIP
+    s_est = profile_blur(prof, a, e_init, positive)
+    if not clipped and not s_est >= SIGMA_BLURRED:
         return False, p
-    # the pixels within 5 px of an edge (the plateaus further in carry only the levels)
+    # the pixels within 5 px (or 3 blur sd) of an edge (the plateaus further in carry only the levels)
+    reach = max(5, int(math.ceil(3.0 * s_est))) if s_est >= SIGMA_BLURRED else 5
     keep = np.zeros(n, np.bool_)
     for k in range(4):
-        for i in range(max(int(e_init[k]) - a - 5, 0), min(int(e_init[k]) - a + 6, n)):
+        for i in range(max(int(e_init[k]) - a - reach, 0), min(int(e_init[k]) - a + reach + 1, n)):
             keep[i] = True
     idx = np.nonzero(keep)[0]
     best = np.empty(7)
     best_cost = np.inf
+    if not clipped:  # blurred, not clipped: one start, at the centroids and the profile's levels
+        for k in range(4):
+            p[k] = e_init[k]
+        p[4] = s_est
+        p[5] = pmax
+        p[6] = pmin
+        lm_bar(prof, a, idx, p, positive, np.int64(30))
+        for k in range(4):
+            if abs(p[k] - e_init[k]) > 1.5:
+                return False, p
+        return p[4] >= SIGMA_MIN, p
     for start in range(len(B_STARTS) * len(E_STARTS)):
         # edges start from the centroids moved towards their bright side (clipping biases
         # the centroids towards the dark side)

@@ -17,7 +17,7 @@ import numpy as np
 from localizer._jit import jit
 from localizer._kernels.exact_pose import fit
 from localizer._kernels.records import EXACT_RESULT, FitStatus, Intrinsics, TargetConstants
-from localizer._kernels.subpixel import edge_rows, subpixel
+from localizer._kernels.subpixel import blur_floor, edge_rows, subpixel
 from localizer._kernels.target_test import makes_target
 
 
@@ -44,8 +44,9 @@ def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, set
     tc = TargetConstants(t.bar_width, t.bar_height, t.margin)
     e = np.empty((2, 2), np.int64)
     e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
-    rows = edge_rows(stack_rows)
+    rows = edge_rows(image, stack_rows, bounds)
     m, _, _, _ = subpixel(image, rows, bounds, e, positive)
+    floor = blur_floor(image, rows, bounds, st.sigma_floor)
     edges, top, bot = m.edges, m.top, m.bottom
     out = np.zeros(1, EXACT_RESULT)
     r = out[0]
@@ -57,7 +58,7 @@ def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, set
     if not makes_target(edges[0], edges[1], edges[2], edges[3], bot[0] - top[0], bot[1] - top[1],
                         st.width_tolerance, st.width_slack, st.min_rows):
         return out
-    f = fit(m, cam, tc, positive, st.sigma_floor, st.iterations)
+    f = fit(m, cam, tc, positive, floor, st.iterations)
     if f.status != FitStatus.FITTED:
         return out
     p = f.p

@@ -13,7 +13,8 @@ import math
 import numpy as np
 
 from localizer._jit import inline, jit
-from localizer._kernels.clipped import fit_bar_profile, refine_horizontal_clipped
+from localizer._kernels.blur import CLIP
+from localizer._kernels.clipped import SIGMA_BLURRED, fit_bar_profile, profile_blur, refine_horizontal_clipped
 from localizer._kernels.records import MeasuredEdges, ProfileFit
 
 #: differences per edge profile (px): 12 pixels around each rough edge
@@ -21,12 +22,61 @@ PROFILE_LENGTH = 11
 
 
 @jit
-def edge_rows(rows):
+def edge_rows(image, rows, bounds):
     """The rows (n,) of a stack's ``rows`` on which the vertical edges are measured: all but
-    the first and last eighth (blur, slanted tops), unless fewer than 3 would be left."""
+    the first and last eighth (blur, slanted tops), unless fewer than 3 would be left; on a
+    blurred target (:func:`rows_blur` at least
+    :data:`~localizer._kernels.clipped.SIGMA_BLURRED`) also the rows within 2.5 blur sd of
+    those ends, where the blurred ends of the bars (slanted, unless the target faces the
+    camera) move the edges of the row-mean profile, leaving at least a quarter of the rows.
+    ``bounds`` (4,): the stack's median run boundaries (columns)."""
     nr = rows.size
     e = max(1, nr // 8) if nr >= 8 else 0
-    return rows[e:nr - e] if nr - 2 * e >= 3 else rows
+    if nr - 2 * e < 3:
+        return rows
+    s = rows_blur(image, rows[e:nr - e], bounds)
+    t = int(math.ceil(2.5 * s)) if s >= SIGMA_BLURRED else 0
+    extra = min(max(t - e, 0), max((nr - 2 * e - max(3, nr // 4)) // 2, 0))
+    return rows[e + extra:nr - e - extra]
+
+
+#: model error (px) of a blurred target's edges per px of blur sd (the profile fit assumes a
+#: Gaussian blur shared by all four edges, and the centroids of the tops and bottoms see the
+#: bars' blurred corners): added in quadrature to each edge's error from blur
+#: :data:`~localizer._kernels.clipped.SIGMA_BLURRED` on
+BLUR_EDGE_SIGMA = 0.06
+
+
+@jit
+def blur_floor(image, rows, bounds, floor):
+    """The per-edge error floor (px) of a stack measured on ``rows`` (n,) with run boundaries
+    ``bounds`` (4,): ``floor``, or on a blurred target (:func:`rows_blur` at least
+    :data:`~localizer._kernels.clipped.SIGMA_BLURRED`) ``hypot(floor, BLUR_EDGE_SIGMA sd (1 +
+    (2 sd / w)^2))`` with ``w`` the narrowest of its three runs (px): where the blur is as wide as
+    a bar, the edges of the bar and of the gap next to it are measured from their blurred sum."""
+    s = rows_blur(image, rows, bounds)
+    if s >= SIGMA_BLURRED:
+        w = max(min(bounds[1] - bounds[0], bounds[2] - bounds[1], bounds[3] - bounds[2]), 1.0)
+        q = 2.0 * s / w
+        return math.hypot(floor, BLUR_EDGE_SIGMA * s * (1.0 + q * q))
+    return floor
+
+
+@jit
+def rows_blur(image, rows, bounds):
+    """Blur sd (px) of the row-mean profile of ``image`` over ``rows`` (n,) across a stack
+    with run boundaries ``bounds`` (4,) (:func:`localizer._kernels.clipped.profile_blur`)."""
+    w = image.shape[1]
+    a = max(int(bounds[0]) - 4, 0)
+    b = min(int(bounds[3]) + 4, w)
+    prof = np.zeros(max(b - a, 1))
+    for r in rows:
+        for i in range(b - a):
+            prof[i] += image[r, a + i]
+    edges = np.empty(4)
+    for k in range(4):
+        edges[k] = bounds[k] - 0.5
+    return profile_blur(prof, a, edges, True)
 
 
 @inline
@@ -251,7 +301,7 @@ def horizontal_stage(image, xs, fit, ends, positive):
     cxs[0] = 0.5 * (edges[0] + edges[1])
     cxs[1] = 0.5 * (edges[2] + edges[3])
     ccat, grp, ys = horizontal_edges(image, edges, cxs, ends, positive, PROFILE_LENGTH)
-    if fit.clipped:
+    if fit.clipped and fit.bright >= CLIP:  # (a fit of a blurred target that is not clipped: the centroids)
         hbar = float(min(ends[0, 1] - ends[0, 0] + 1, ends[1, 1] - ends[1, 0] + 1))
         ys = refine_horizontal_clipped(image, ccat, grp, ys, positive, hbar, 0.25 * hbar, fit)
     return edges, sd_e, cxs, ccat, grp, ys, sd_fallback

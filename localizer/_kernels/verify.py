@@ -71,10 +71,17 @@ def verify_grey(image, span, sample, xb, positive, s):
         xi[k] = int(np.rint(xb[k]))
     means = np.empty(3)
     spread = 0.0
+    # each segment's pixels but its edges' transitions: 2 px (the thesis's 5-pixel edge), or
+    # as far as a blurred edge reaches (edge_reach, beyond SHARP_REACH), leaving at least the
+    # segment's middle fifth
+    reach = edge_reach(image, ra, rb, xi)
     for s in range(3):
         a, b = xi[s], xi[s + 1]
         mm = min(2, (b - a - 1) // 2)
-        mu, sd = mean_sd(image, ra, rb, a + mm, b - mm)
+        keep = max((b - a) // 5, 1)
+        lo = mm if reach[s] <= SHARP_REACH else max(mm, min(reach[s], (b - a - keep) // 2))
+        hi = mm if reach[s + 1] <= SHARP_REACH else max(mm, min(reach[s + 1], b - a - keep - lo))
+        mu, sd = mean_sd(image, ra, rb, a + lo, b - hi)
         means[s] = mu
         spread = max(spread, 3.3 * sd)
     if spread > uniformity:
@@ -137,6 +144,54 @@ def rough_ends(image, r0, r1, nr, col, thr, positive):
             bot = r - 1
             break
     return top, bot
+
+
+#: how far a blurred edge's transition reaches from it, in sd of its blur (Gaussian: 0.6 % of
+#: the step is left beyond 2.5 sd)
+EDGE_REACH_SD = 2.5
+#: the largest reach (px) of an edge taken as sharp (the thesis's 2 px kept): blur sd up to
+#: 1.2 px, and a sharp edge that falls mid-pixel (two half steps: about 0.8 px)
+SHARP_REACH = 3
+
+
+@jit
+def edge_reach(image, r0, r1, xi):
+    """How far (px, int (4,)) the transition of each of the four run boundaries ``xi`` (4,)
+    (columns) of a stack reaches into its segments, on rows ``r0:r1``: ``EDGE_REACH_SD``
+    times the blur sd of the edge, ``C / (sqrt(2 pi) g)`` for a step of contrast ``C`` (the
+    gap's middle third against the bars') whose steepest change between neighbouring
+    columns of the row-mean profile within 3 px of it is ``g`` (a Gaussian-blurred step of
+    box pixels; a sharp edge gives about 0.4 px: reach 1)."""
+    h, w = image.shape
+    c0 = max(xi[0] - 4, 0)
+    c1 = min(xi[3] + 4, w)
+    n = c1 - c0
+    out = np.zeros(4, np.int64)
+    if n < 3 or r1 <= r0:
+        return out
+    prof = np.zeros(n)
+    for r in range(r0, r1):
+        for i in range(n):
+            prof[i] += image[r, c0 + i]
+    for i in range(n):
+        prof[i] /= r1 - r0
+    lv = np.empty(3)
+    for s in range(3):
+        a, b = xi[s] - c0, xi[s + 1] - c0
+        t = (b - a) // 3
+        lo, hi = a + t, max(b - t, a + t + 1)
+        acc = 0.0
+        for i in range(lo, hi):
+            acc += prof[i]
+        lv[s] = acc / (hi - lo)
+    contrast = abs(lv[1] - 0.5 * (lv[0] + lv[2]))
+    for k in range(4):
+        g = 0.0
+        for i in range(max(xi[k] - c0 - 4, 0), min(xi[k] - c0 + 3, n - 1)):
+            g = max(g, abs(prof[i + 1] - prof[i]))
+        if g > 0.0:
+            out[k] = int(math.ceil(EDGE_REACH_SD * contrast / (math.sqrt(2.0 * math.pi) * g)))
+    return out
 
 
 @jit
