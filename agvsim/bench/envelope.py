@@ -8,9 +8,9 @@ shot and read noise, clipping, sRGB, Bayer demosaicing, JPEG): none of it from
 1.5-5 m, alpha within +-60 deg, the whole print in view.
 
 Per condition (:mod:`agvsim.bench.envelope_conditions`): the target found (a detection within
-2 deg of bearing and 20 % of distance of the truth), false detections, the errors of d (% of
-d), beta and alpha (deg; alpha over targets whose shorter bar is >= 60 rows tall at 512 x 480,
-scaled with fy), the share of errors within 3 sigma of the reported covariance (per axis and
+2 deg of bearing and 20 % of distance of the truth), false detections, the absolute errors
+of d (% of d), beta and alpha (deg; alpha over targets whose shorter bar is >= 60 rows tall
+at 512 x 480, scaled with fy), the share of errors within 3 sigma of the reported covariance (per axis and
 in 3-D against chi-square 3), and ms per ``detect_targets`` call (``time.perf_counter``, one
 call per frame after an untimed warm-up call). Plus false detections on target-free frames
 (the same pipeline, clutter only) at every resolution run. Every condition of a resolution
@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from agvsim.bench.envelope_conditions import (ALPHA_MIN_ROWS, CHI2_3D_3SIGMA, CONDITIONS, FLOORS, GATE_BETA,
+from agvsim.bench.envelope_conditions import (ALPHA_MIN_ROWS, CHI2_3D_3SIGMA, FLOORS, GATE_BETA,
                                               GATE_DISTANCE, NAMES, SPEED_SIZE, parse_conditions)
 from agvsim.bench.floors import floor_line, verdict
 from agvsim.commands._args import number
