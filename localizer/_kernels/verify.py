@@ -19,7 +19,8 @@ def verify(image, rows, xb, positive, s):
     """Pattern verification (§4.5.2) of the stack on ``rows`` (n,) with median run boundaries
     ``xb`` (4,): (1) minimum height (``min_rows``) and aspect ratio (rows spanned / width
     within ``aspect_lo .. aspect_hi``); (2) uniform grey within each segment (spread of
-    non-boundary pixels, ``3.3 sd`` as a robust range, at most ``uniformity``; boundary = up
+    non-boundary pixels about their least-squares plane, ``3.3 sd`` as a robust range, at most
+    ``uniformity``; boundary = up
     to 2 px at each end, the thesis's 5-pixel edge transition) and contrast between adjacent
     segments (:func:`verify_grey`); (3) connectivity is built into the stack. Also, with
     ``s.check_margins``: the blank margin above and below each bar.
@@ -56,7 +57,8 @@ def verify_grey(image, span, sample, xb, positive, s):
     contrast between them, the rough bar ends (:func:`rough_ends`) at each bar's centre
     column near the stack's ends, bar heights differing by at most ``height_term * h^2``
     plus slack (``height_term = 2 (b / H) sin(max_alpha) / fy``), and (``check_margins``)
-    the blank margins above and below both bars. Returns a
+    the blank margins above and below both bars and the gap between them, over the bars' whole
+    height and into the margins (:data:`GAP_SHARE`). Returns a
     :class:`~localizer._kernels.records.Verification`: ``Reject.NONE`` when passed, else
     ``UNIFORMITY``, ``CONTRAST``, ``BAR_ENDS``, ``BAR_HEIGHTS``, ``OUT_OF_VIEW`` or ``MARGINS``.
     """
@@ -81,7 +83,7 @@ def verify_grey(image, span, sample, xb, positive, s):
         keep = max((b - a) // 5, 1)
         lo = mm if reach[s] <= SHARP_REACH else max(mm, min(reach[s], (b - a - keep) // 2))
         hi = mm if reach[s + 1] <= SHARP_REACH else max(mm, min(reach[s + 1], b - a - keep - lo))
-        mu, sd = mean_sd(image, ra, rb, a + lo, b - hi)
+        mu, sd = mean_sd_planar(image, ra, rb, a + lo, b - hi)
         means[s] = mu
         spread = max(spread, 3.3 * sd)
     if spread > uniformity:
@@ -122,6 +124,14 @@ def verify_grey(image, span, sample, xb, positive, s):
             for ya, yb in ((t - kb, t - ka + 1), (b + ka, b + kb + 1)):
                 if count_shade(image, ya, yb, a, bb, thr, positive) < 0.75 * (yb - ya) * max(bb - a, 0):
                     return Verification(Reject.MARGINS, dark, bright, t0, b0, t1, b1)
+        # the gap runs the bars' whole height and on into the margins: a letter's counter (an O's,
+        # a 0's) closes before its strokes end
+        ka = max(2, int(np.rint(0.12 * min(h0, h1))))
+        g0 = (xi[1] + xi[2]) // 2
+        gw = max((xi[2] - xi[1]) // 4, 0)
+        ya, yb = max(min(t0, t1) - ka, 0), min(max(b0, b1) + ka + 1, h)
+        if count_shade(image, ya, yb, g0 - gw, g0 + gw + 1, thr, positive) < GAP_SHARE * (yb - ya) * (2 * gw + 1):
+            return Verification(Reject.MARGINS, dark, bright, t0, b0, t1, b1)
     return Verification(Reject.NONE, dark, bright, t0, b0, t1, b1)
 
 
@@ -149,6 +159,9 @@ def rough_ends(image, r0, r1, nr, col, thr, positive):
 #: how far a blurred edge's transition reaches from it, in sd of its blur (Gaussian: 0.6 % of
 #: the step is left beyond 2.5 sd)
 EDGE_REACH_SD = 2.5
+#: the share of the gap's middle columns, over the bars' height and a little into the margins,
+#: that must have the gap's shade (``check_margins``)
+GAP_SHARE = 0.9
 #: the largest reach (px) of an edge taken as sharp (the thesis's 2 px kept): blur sd up to
 #: 1.2 px, and a sharp edge that falls mid-pixel (two half steps: about 0.8 px)
 SHARP_REACH = 3
@@ -195,19 +208,39 @@ def edge_reach(image, r0, r1, xi):
 
 
 @jit
-def mean_sd(image, r0, r1, c0, c1):
-    """Mean and (population) standard deviation of ``image[r0:r1, c0:c1]`` (grey levels)."""
-    s = 0
-    ss = 0
-    for r in range(r0, r1):
-        seg = image[r, c0:c1]
-        for c in range(seg.size):  # integer sums over a slice, so that it vectorises
-            v = np.int32(seg[c])
-            s += v
+def mean_sd_planar(image, r0, r1, c0, c1):
+    """Mean (grey levels) of ``image[r0:r1, c0:c1]`` and the (population) standard deviation of
+    its pixels about the least-squares plane ``a + b x + c y`` through them: a smooth shading
+    across the block (vignetting, a lamp's falloff) is not counted as non-uniform."""
+    nr, nc = r1 - r0, c1 - c0
+    if nr <= 0 or nc <= 0:
+        return 0.0, 0.0
+    xm, ym = 0.5 * (nc - 1), 0.5 * (nr - 1)
+    s = 0.0
+    ss = 0.0
+    sx = 0.0
+    sy = 0.0
+    for r in range(nr):
+        seg = image[r0 + r, c0:c1]
+        rs = 0.0
+        for c in range(nc):
+            v = float(seg[c])
+            rs += v
             ss += v * v
-    n = max((r1 - r0) * (c1 - c0), 1)
+            sx += (c - xm) * v
+        s += rs
+        sy += (r - ym) * rs
+    n = nr * nc
     mu = s / n
-    return mu, math.sqrt(max(ss / n - mu * mu, 0.0))
+    var = ss / n - mu * mu
+    # sum over the block of (x - xm)^2 and (y - ym)^2 (the centred grid's x and y are orthogonal)
+    sxx = nr * nc * (nc * nc - 1) / 12.0
+    syy = nc * nr * (nr * nr - 1) / 12.0
+    if sxx > 0.0:
+        var -= sx * sx / sxx / n
+    if syy > 0.0:
+        var -= sy * sy / syy / n
+    return mu, math.sqrt(max(var, 0.0))
 
 
 @jit
