@@ -20,7 +20,8 @@ def verify(image, rows, xb, positive, s):
     ``xb`` (4,): (1) minimum height (``min_rows``) and aspect ratio (rows spanned / width
     within ``aspect_lo .. aspect_hi``); (2) uniform grey within each segment (spread of
     non-boundary pixels about their least-squares plane, ``3.3 sd`` as a robust range, at most
-    ``uniformity``; boundary = up
+    ``uniformity``, or ``hypot(uniformity, 3.3 noise)`` with the noise measured down the
+    segments (:func:`vertical_noise`, at most :data:`NOISE_CONTRAST` of the contrast); boundary = up
     to 2 px at each end, the thesis's 5-pixel edge transition) and contrast between adjacent
     segments (:func:`verify_grey`); (3) connectivity is built into the stack. Also, with
     ``s.check_margins``: the blank margin above and below each bar.
@@ -72,22 +73,26 @@ def verify_grey(image, span, sample, xb, positive, s):
     for k in range(4):
         xi[k] = int(np.rint(xb[k]))
     means = np.empty(3)
-    spread = 0.0
     # each segment's pixels but its edges' transitions: 2 px (the thesis's 5-pixel edge), or
     # as far as a blurred edge reaches (edge_reach, beyond SHARP_REACH), leaving at least the
     # segment's middle fifth
     reach = edge_reach(image, ra, rb, xi)
+    sds = np.empty(3)
+    noise = np.empty(3)  # the noise down each segment (a bar is the same down a column)
     for s in range(3):
         a, b = xi[s], xi[s + 1]
         mm = min(2, (b - a - 1) // 2)
         keep = max((b - a) // 5, 1)
         lo = mm if reach[s] <= SHARP_REACH else max(mm, min(reach[s], (b - a - keep) // 2))
         hi = mm if reach[s + 1] <= SHARP_REACH else max(mm, min(reach[s + 1], b - a - keep - lo))
-        mu, sd = mean_sd_planar(image, ra, rb, a + lo, b - hi)
-        means[s] = mu
-        spread = max(spread, 3.3 * sd)
-    if spread > uniformity:
-        return Verification(Reject.UNIFORMITY, 0.0, 0.0, 0, 0, 0, 0)
+        means[s], sds[s] = mean_sd_planar(image, ra, rb, a + lo, b - hi)
+        noise[s] = vertical_noise(image, ra, rb, a + lo, b - hi)
+    # the sensor's noise is not texture: the spread allowed grows with the noise measured down
+    # each segment (at most a tenth of the contrast between the segments)
+    cap = NOISE_CONTRAST * abs(means[1] - 0.5 * (means[0] + means[2]))
+    for s in range(3):
+        if 3.3 * sds[s] > math.hypot(uniformity, 3.3 * min(noise[s], cap)):
+            return Verification(Reject.UNIFORMITY, 0.0, 0.0, 0, 0, 0, 0)
     if positive:
         dark, bright = 0.5 * (means[0] + means[2]), means[1]
         c = min(means[1] - means[0], means[1] - means[2])
@@ -205,6 +210,27 @@ def edge_reach(image, r0, r1, xi):
         if g > 0.0:
             out[k] = int(math.ceil(EDGE_REACH_SD * contrast / (math.sqrt(2.0 * math.pi) * g)))
     return out
+
+
+#: the largest sensor noise (grey levels sd) :func:`verify_grey`'s uniformity allows for, as a
+#: share of the contrast between the segments
+NOISE_CONTRAST = 0.1
+
+
+@jit
+def vertical_noise(image, r0, r1, c0, c1):
+    """The noise sd (grey levels) of ``image[r0:r1, c0:c1]`` from its vertical neighbour
+    differences: ``sqrt(pi) / 2`` times their mean absolute value (a Gaussian noise of sd ``s``
+    gives differences of sd ``s sqrt(2)``, mean absolute value ``2 s / sqrt(pi)``)."""
+    if r1 - r0 < 2 or c1 <= c0:
+        return 0.0
+    acc = 0
+    for r in range(r0, r1 - 1):
+        a = image[r, c0:c1]
+        b = image[r + 1, c0:c1]
+        for c in range(c1 - c0):
+            acc += abs(np.int32(a[c]) - np.int32(b[c]))
+    return 0.5 * math.sqrt(math.pi) * acc / ((r1 - r0 - 1) * (c1 - c0))
 
 
 @jit
