@@ -51,6 +51,10 @@ CONDITIONS: tuple[Condition, ...] = (
               FrameSettings(width=1920, height=1200)),
     Condition("hires_2448", "baseline at 2448x2048 (same view, same angular blur)",
               FrameSettings(width=2448, height=2048)),
+    Condition("blur3_1280", "blur3's angular blur at 1280x1024 (Gaussian sd 7.5 px)",
+              FrameSettings(width=1280, height=1024, blur=3.0)),
+    Condition("blur3_2448", "blur3's angular blur at 2448x2048 (Gaussian sd 14 px)",
+              FrameSettings(width=2448, height=2048, blur=3.0)),
 )
 NAMES: tuple[str, ...] = tuple(c.name for c in CONDITIONS)
 BY_NAME: dict[str, Condition] = {c.name: c for c in CONDITIONS}
