@@ -1,0 +1,68 @@
+"""Large frames: the search on a coarse level, each target measured where its blur is 1-2 px."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from localizer import Camera, detect_targets
+from localizer.params import DetectorParams
+from localizer.pyramid import LEVEL_ROWS, coarse_factor, detect_pyramid, level_image
+from localizer.synthetic import random_pose, render_frame
+
+
+def test_coarse_factor_keeps_at_least_the_level_rows():
+    assert coarse_factor(480) == 1 and coarse_factor(959) == 1
+    assert coarse_factor(960) == 2 and coarse_factor(1200) == 2
+    assert coarse_factor(2048) == 4
+    for h in (960, 1024, 1920, 2048, 4000):
+        k = coarse_factor(h)
+        assert h // k >= LEVEL_ROWS > h // (2 * k)
+
+
+def test_level_image_is_the_block_mean():
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (103, 130), dtype=np.uint8)
+    for k in (1, 2, 4):
+        lv = level_image(img, k)
+        hh, ww = 103 // k, 130 // k
+        ref = img[:hh * k, :ww * k].reshape(hh, k, ww, k).mean(axis=(1, 3))
+        assert lv.shape == (hh, ww)
+        # (halved k / 2 times, each rounded to 8 bits)
+        assert np.abs(lv.astype(float) - ref).max() <= 0.5 * math.log2(k) + 1e-9
+
+
+def _pyramid(img, cam):
+    p = dataclasses.asdict(DetectorParams().resolved(cam.height, cam.width))
+    return detect_pyramid(detect_targets, img, cam, p)
+
+
+def test_a_sharp_target_is_measured_on_the_frame_itself():
+    cam = Camera.thesis(16.0).scaled(2048, 1920)
+    rng = np.random.default_rng(7)
+    for _ in range(4):
+        pose = random_pose(rng, Camera.thesis(16.0), distance=(1.5, 4.0), max_alpha=math.radians(45.0))
+        img = render_frame(cam, pose, blur=0.5, noise=2.0, rng=rng)
+        direct, pyr = detect_targets(img, cam), _pyramid(img, cam)
+        assert len(direct) == len(pyr) == 1
+        assert np.allclose(direct[0].measurements.edges_x, pyr[0].measurements.edges_x, atol=0.05)
+        assert pyr[0].distance == pytest.approx(direct[0].distance, rel=2e-4)
+
+
+def test_a_heavily_blurred_large_frame_is_found_on_the_coarse_level():
+    # the thesis camera's 3 px of blur on a 2048 x 1920 sensor: 12 px
+    cam = Camera.thesis(16.0).scaled(2048, 1920)
+    rng = np.random.default_rng(3)
+    found = 0
+    for _ in range(6):
+        pose = random_pose(rng, Camera.thesis(16.0), distance=(1.5, 5.0), max_alpha=math.radians(45.0))
+        img = render_frame(cam, pose, blur=12.0, noise=2.0, rng=rng)
+        obs = _pyramid(img, cam)
+        ok = [o for o in obs if abs(o.beta - pose.beta) < 0.01 and abs(o.distance - pose.distance) < 0.03 * pose.distance]
+        found += len(ok) == len(obs) == 1
+        if ok:  # the measurements are in the frame's pixels
+            m = ok[0].measurements
+            assert 0 <= m.edges_x[0] < m.edges_x[3] < cam.width and 0 <= m.rows[0] < m.rows[1] < cam.height
+    assert found == 6
