@@ -24,7 +24,7 @@ def verify(image, rows, xb, positive, s):
     segments (:func:`vertical_noise`, at most :data:`NOISE_CONTRAST` of the contrast); boundary = up
     to 2 px at each end, the thesis's 5-pixel edge transition) and contrast between adjacent
     segments (:func:`verify_grey`); (3) connectivity is built into the stack. Also, with
-    ``s.check_margins``: the blank margin above and below each bar.
+    ``s.check_margins``: the blank margins around the bars and the gap between them.
 
     Args: ``image`` (H, W) uint8; ``rows`` (n,) int64 image rows of the stack, increasing;
     ``xb`` (4,) float columns; ``positive``: black bars on white; ``s``: the
@@ -58,8 +58,9 @@ def verify_grey(image, span, sample, xb, positive, s):
     contrast between them, the rough bar ends (:func:`rough_ends`) at each bar's centre
     column near the stack's ends, bar heights differing by at most ``height_term * h^2``
     plus slack (``height_term = 2 (b / H) sin(max_alpha) / fy``), and (``check_margins``)
-    the blank margins above and below both bars and the gap between them, over the bars' whole
-    height and into the margins (:data:`GAP_SHARE`). Returns a
+    the blank margins above and below both bars, the side margins beside them
+    (:data:`SIDE_SHARE`) and the gap between them, both over the bars' whole height and into
+    the margins above and below (:data:`GAP_SHARE`). Returns a
     :class:`~localizer._kernels.records.Verification`: ``Reject.NONE`` when passed, else
     ``UNIFORMITY``, ``CONTRAST``, ``BAR_ENDS``, ``BAR_HEIGHTS``, ``OUT_OF_VIEW`` or ``MARGINS``.
     """
@@ -129,6 +130,17 @@ def verify_grey(image, span, sample, xb, positive, s):
             for ya, yb in ((t - kb, t - ka + 1), (b + ka, b + kb + 1)):
                 if count_shade(image, ya, yb, a, bb, thr, positive) < 0.75 * (yb - ya) * max(bb - a, 0):
                     return Verification(Reject.MARGINS, dark, bright, t0, b0, t1, b1)
+        # the side margins run the bars' whole height and on into the margins above and below: a
+        # letter's stroke turns into a bowl, a foot or a hat (U, L, J) next to it, where the rows
+        # of the stack stop short of the bar's end
+        mw = max(1, int(np.rint(0.25 * (xi[3] - xi[0]) / 3.0))) + 1
+        for k in range(2):
+            t, b = (t0, b0) if k == 0 else (t1, b1)
+            ka = max(2, int(np.rint(0.12 * (b - t + 1))))
+            c0 = xi[0] - mw if k == 0 else xi[3]
+            n = b - t + 1 + 2 * ka
+            if rows_with_shade(image, t - ka, b + ka + 1, c0, c0 + mw, thr, positive) < SIDE_SHARE * n:
+                return Verification(Reject.MARGINS, dark, bright, t0, b0, t1, b1)
         # the gap runs the bars' whole height and on into the margins: a letter's counter (an O's,
         # a 0's) closes before its strokes end
         ka = max(2, int(np.rint(0.12 * min(h0, h1))))
@@ -167,6 +179,10 @@ EDGE_REACH_SD = 2.5
 #: the share of the gap's middle columns, over the bars' height and a little into the margins,
 #: that must have the gap's shade (``check_margins``)
 GAP_SHARE = 0.9
+#: the share of the rows of each bar (and a little into the margins above and below) whose side
+#: margin, the pixels just outside the bar's outer edge (a quarter of a bar wide, and one more),
+#: must hold a pixel of the gap's shade (``check_margins``)
+SIDE_SHARE = 0.95
 #: the largest reach (px) of an edge taken as sharp (the thesis's 2 px kept): blur sd up to
 #: 1.2 px, and a sharp edge that falls mid-pixel (two half steps: about 0.8 px)
 SHARP_REACH = 3
@@ -277,4 +293,19 @@ def count_shade(image, r0, r1, c0, c1, thr, light):
         for c in range(c0, c1):
             if (image[r, c] >= thr) == light:
                 n += 1
+    return n
+
+
+@jit
+def rows_with_shade(image, r0, r1, c0, c1, thr, light):
+    """Rows of ``r0:r1`` whose pixels ``c0:c1`` include one that is ``>= thr`` (``light``) or
+    ``< thr``; rows and columns outside the image count as without."""
+    h, w = image.shape
+    a, b = max(c0, 0), min(c1, w)
+    n = 0
+    for r in range(max(r0, 0), min(r1, h)):
+        for c in range(a, b):
+            if (image[r, c] >= thr) == light:
+                n += 1
+                break
     return n
