@@ -36,6 +36,15 @@ WIDE_SD_RANGE = 0.003
 #: refinement from the edge-based pose; on 1,648 refinements of the accuracy sweep the
 #: largest was 4.9
 PHOTOMETRIC_GATE = 6.0
+#: the sRGB curve's inverse, code for code (8 bits): linear light of an sRGB-encoded grey level
+SRGB_TO_LINEAR = np.clip(np.rint(255.0 * np.where(np.arange(256) <= 10.31475, np.arange(256) / (255.0 * 12.92),
+                                                  ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4)), 0, 255
+                         ).astype(np.uint8)
+#: ``response="auto"``: a target's pixels are taken as sRGB-encoded (and linearized, :func:`_exact`)
+#: when the exact fit's common shift of every edge towards its dark side exceeds this share of the
+#: edges' blur sd (px, at least 0.5). On the envelope benchmark's frames the share is 0.22-0.41
+#: through the sRGB curve and at most 0.12 with a linear response (blur, noise, flare, JPEG, Bayer)
+ENCODED_SHIFT = 0.16
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:
@@ -162,19 +171,40 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     """Subpixel edges and the exact pose of the verified stack ``v`` (refined on the pixels as
     ``p.photometric`` says, when ``refine``). Returns ``(edges, bar_cx, top, bottom, pose)``:
     tuples of 4, 2, 2 and 2 pixel coordinates and the pose, None when the edges do not make
-    a target (:func:`localizer._kernels.target_test.makes_target`) or the model does not fit them."""
+    a target (:func:`localizer._kernels.target_test.makes_target`) or the model does not fit them.
+
+    The camera's response (``p.response``). The edges and the pixel-level refinement assume grey
+    levels proportional to light. Through the sRGB curve of most USB, phone and web cameras
+    (grey ~ light^(1/2.4)) a blurred edge's dark side is stretched and its bright side squeezed:
+    every edge's gradient moves towards its dark side, by about a third of the blur sd on a
+    printed target. The fit's common shift ``delta`` takes up the common part, not the rest (the
+    tops and bottoms, and narrow runs, are measured through other windows; the refinement's
+    linear blur model is wrong): on sRGB frames the range was then up to 5 sd off. So the
+    target's neighbourhood is linearized through the sRGB inverse (:data:`SRGB_TO_LINEAR`) and
+    measured again: with ``"srgb"`` always, with ``"auto"`` when ``delta`` says the edges are
+    encoded (:data:`ENCODED_SHIFT`; never on clipped targets, whose clipping shifts their
+    edges too), with ``"linear"`` never."""
     saturated = v.bright >= 250.0
     clipped = saturated or (v.dark <= 5.0)
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
-    if camera.has_distortion:
-        m = subpixel_edges(img, camera, v)
-        edges, cxs, top, bot = (tuple(a.tolist()) for a in (m.edges_x, m.bar_cx, m.top_y, m.bottom_y))
-        est = exact_pose(m, camera, target, v.positive, floor) if _makes_target(edges, top, bot, p) else None
-    else:  # one compiled call
-        edges, cxs, top, bot, est = exact_measure(img, camera, target, v, floor, p.width_tolerance, p.width_slack,
-                                                  p.min_rows)
+    view = _linear_view(img, camera, v) if p.response == "srgb" else None
+    if view is None:
+        edges, cxs, top, bot, est = _edges_pose(img, camera, target, v, floor, p)
+        if (p.response == "auto" and est is not None and not clipped and est.edge_bias > 0.5 * ENCODED_SHIFT
+                and est.edge_bias > ENCODED_SHIFT * max(_blur_sd(img, v), 0.5)):
+            view = _linear_view(img, camera, v)
+            found = _edges_pose(view[0], view[1], target, view[2], floor, p)
+            if found[4] is None:  # the encoded edges made a target, the linear ones do not: keep them
+                view = None
+    else:
+        found = _edges_pose(view[0], view[1], target, view[2], floor, p)
+    if view is not None:
+        c0, r0 = view[3]
+        edges, cxs = tuple(x + c0 for x in found[0]), tuple(x + c0 for x in found[1])
+        top, bot, est = tuple(y + r0 for y in found[2]), tuple(y + r0 for y in found[3]), found[4]
+        img, camera, v = view[0], view[1], view[2]
     if est is None:
         return edges, cxs, top, bot, None
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
@@ -187,6 +217,40 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
             and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
         est = None
     return edges, cxs, top, bot, est
+
+
+def _edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: float, p: DetectorParams):
+    """``(edges, bar_cx, top, bottom, pose)`` of the verified stack ``v`` from its edges alone
+    (:func:`_exact` without the refinement and the last checks; ``floor`` the per-edge error floor, px)."""
+    if camera.has_distortion:
+        m = subpixel_edges(img, camera, v)
+        edges, cxs, top, bot = (tuple(a.tolist()) for a in (m.edges_x, m.bar_cx, m.top_y, m.bottom_y))
+        est = exact_pose(m, camera, target, v.positive, floor) if _makes_target(edges, top, bot, p) else None
+        return edges, cxs, top, bot, est
+    # one compiled call
+    return exact_measure(img, camera, target, v, floor, p.width_tolerance, p.width_slack, p.min_rows)
+
+
+def _linear_view(img: np.ndarray, camera: Camera, v):
+    """The neighbourhood of the verified stack ``v`` (the bars, their margins and as much again on
+    every side) linearized through the sRGB inverse: ``(crop, camera, stack, (c0, r0))``: the
+    crop, its camera (its principal point moved by the crop's first column ``c0`` and row
+    ``r0``), and ``v`` in the crop's pixels with its grey levels linearized."""
+    h, w = img.shape
+    (t0, b0), (t1, b1) = v.ends
+    xb = v.bounds
+    hb = max(b0, b1) - min(t0, t1) + 1
+    wd = float(xb[3] - xb[0])
+    r0, r1 = max(0, int(min(t0, t1) - hb - 8)), min(h, int(max(b0, b1) + hb + 9))
+    c0, c1 = max(0, int(math.floor(xb[0] - wd - 8))), min(w, int(math.ceil(xb[3] + wd + 9)))
+    crop = SRGB_TO_LINEAR[img[r0:r1, c0:c1]]
+    cam = Camera(camera.fx, camera.fy, camera.cx - c0, camera.cy - r0, c1 - c0, r1 - r0, camera.dist)
+    grey = np.arange(256.0)
+    lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((int(a) - r0, int(b) - r0) for a, b in v.ends),
+                             median_x=None if v.median_x is None else v.median_x - c0,
+                             dark=float(np.interp(v.dark, grey, SRGB_TO_LINEAR)),
+                             bright=float(np.interp(v.bright, grey, SRGB_TO_LINEAR)))
+    return crop, cam, lv, (c0, r0)
 
 
 def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) -> bool:

@@ -17,6 +17,9 @@ from localizer.numeric import check_choice, check_number
 
 METHODS = ("thesis", "exact")
 PHOTOMETRIC = ("off", "clipped", "auto", "all")
+RESPONSES = ("auto", "linear", "srgb")
+#: the choices of every "choice" field of :class:`DetectorParams`
+CHOICES = {"photometric": PHOTOMETRIC, "response": RESPONSES}
 #: largest window, run or row count (px or rows) a detector parameter may name: more than
 #: any frame's side is meaningless, and the kernels' loops and buffers grow with it
 MAX_PX = 4096
@@ -29,7 +32,7 @@ _SHARE = dict(low=0.0, high=1.0)
 _COUNT = dict(low=1, high=MAX_PX, integer=True)
 #: every field of :class:`DetectorParams` -> (kind, check_number bounds). Kinds: "number";
 #: "auto" (a number, or None for the resolution's default); "bool"; "choice"
-#: (:data:`PHOTOMETRIC`); "path" (str, os.PathLike or None). ``tests/localizer`` holds that
+#: (:data:`CHOICES`); "path" (str, os.PathLike or None). ``tests/localizer`` holds that
 #: every field is here.
 PARAM_RANGES: dict[str, tuple[str, dict]] = {
     "coarse_step": ("auto", dict(_COUNT, unit="rows")),
@@ -55,6 +58,7 @@ PARAM_RANGES: dict[str, tuple[str, dict]] = {
     "edge_window": ("number", dict(low=3, high=MAX_EDGE_WINDOW, integer=True, unit="px")),
     "edge_sigma_floor": ("number", dict(low=0.0, high=100.0, unit="px")),
     "photometric": ("choice", {}),
+    "response": ("choice", {}),
     "max_targets": ("number", dict(low=1, high=65536, integer=True)),
     "max_candidates": ("number", dict(low=1, high=65536, integer=True)),
     "debug_dir": ("path", {}),
@@ -98,6 +102,12 @@ class DetectorParams:
     # dim targets); "all" every target; "off" none. Costs ~0.5-2 ms per refined target (up to
     # ~7 ms for an uncertain saturated one, which gets several starts)
     photometric: str = "auto"
+    # --- the camera's response (grey level against light), for the edges and the refinement:
+    # "linear" (machine-vision and raw frames: the pixels as they are); "srgb" (most USB, phone
+    # and web cameras encode their frames with the sRGB curve: each target's pixels are
+    # linearized through its inverse before its edges are measured); "auto" decides per target
+    # from its edges (localizer.detect.ENCODED_SHIFT)
+    response: str = "auto"
     # --- misc
     max_targets: int = 32  # most targets reported per frame
     max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)
@@ -111,7 +121,7 @@ class DetectorParams:
                 if not isinstance(v, (bool, np.bool_)):
                     raise ValueError(f"{where} must be True or False, got {v!r}")
             elif kind == "choice":
-                check_choice(where, v, PHOTOMETRIC)
+                check_choice(where, v, CHOICES[name])
             elif kind == "path":
                 if v is not None and not isinstance(v, (str, os.PathLike)):
                     raise ValueError(f"{where} must be a folder path or None, got {v!r}")

@@ -1,17 +1,27 @@
 """Frames of the envelope benchmark (independent renders: a printed target on a cluttered wall
 through a real camera's optics and sensor) that the localizer once got wrong: lettering taken
-for a target."""
+for a target, and covariances too small through the sRGB curve."""
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
 
-from agvsim.bench.envelope_conditions import BY_NAME, GATE_BETA, GATE_DISTANCE
+from agvsim.bench.envelope_conditions import BY_NAME, CHI2_3D_3SIGMA, GATE_BETA, GATE_DISTANCE
 from agvsim.bench.envelope_frames import make_frame
 from localizer import detect_targets
 
 
 def _matches(o, pose) -> bool:
     return abs(o.beta - pose.beta) < GATE_BETA and abs(o.distance / pose.distance - 1.0) < GATE_DISTANCE
+
+
+def _errors(o, pose) -> tuple[np.ndarray, float]:
+    """Errors in sd of the reported covariance (d, beta, alpha) and the 3-D Mahalanobis distance squared."""
+    e = np.array([o.distance - pose.distance, o.beta - pose.beta, math.remainder(o.alpha - pose.alpha, 2 * math.pi)])
+    c = np.asarray(o.covariance)
+    return np.abs(e) / np.sqrt(np.diag(c)), float(e @ np.linalg.solve(c, e))
 
 
 @pytest.mark.parametrize("condition, index", [("defocus", 108), ("motion_diag", 108), ("very_noisy", 108),
@@ -31,3 +41,45 @@ def test_a_stroke_beside_a_light_strip_is_not_a_target():
     # width: the exact fit's normalised residual 6.5) on a 1280 x 1024 frame without a target
     frame = make_frame(BY_NAME["hires_1280"].settings, 0, 21, with_target=False)
     assert detect_targets(frame.image, frame.camera) == []
+
+
+#: gamma frames whose range was 4.4-5.4 sd off before the pixels were linearized
+GAMMA_FRAMES = (79, 127, 169, 176, 283, 285)
+
+
+def test_srgb_encoded_targets_are_measured_within_their_covariance():
+    worst = []
+    for index in GAMMA_FRAMES:
+        frame = make_frame(BY_NAME["gamma"].settings, 0, index)
+        found = [o for o in detect_targets(frame.image, frame.camera) if _matches(o, frame.scene.pose)]
+        assert len(found) == 1
+        z, m2 = _errors(found[0], frame.scene.pose)
+        worst.append((z.max(), m2))
+    assert max(z for z, _ in worst) <= 3.0
+    assert max(m2 for _, m2 in worst) <= CHI2_3D_3SIGMA
+
+
+def test_response_choices():
+    frame = make_frame(BY_NAME["gamma"].settings, 0, GAMMA_FRAMES[0])
+    pose = frame.scene.pose
+    auto = detect_targets(frame.image, frame.camera)
+    srgb = detect_targets(frame.image, frame.camera, response="srgb")
+    linear = detect_targets(frame.image, frame.camera, response="linear")
+    assert len(auto) == len(srgb) == len(linear) == 1
+    assert auto[0].distance == srgb[0].distance and auto[0].alpha == srgb[0].alpha
+    assert _errors(linear[0], pose)[0][0] > 3.0  # the pixels as they are: the range 5 sd off
+    # a linear frame is measured as it is: "auto" and "linear" agree to the bit
+    base = make_frame(BY_NAME["baseline"].settings, 0, GAMMA_FRAMES[0])
+    a = detect_targets(base.image, base.camera)
+    b = detect_targets(base.image, base.camera, response="linear")
+    assert [(o.distance, o.beta, o.alpha) for o in a] == [(o.distance, o.beta, o.alpha) for o in b]
+    with pytest.raises(ValueError, match="response"):
+        detect_targets(frame.image, frame.camera, response="gamma")
+
+
+def test_srgb_inverse_table():
+    from localizer.detect import SRGB_TO_LINEAR
+
+    assert SRGB_TO_LINEAR[0] == 0 and SRGB_TO_LINEAR[255] == 255
+    assert np.all(np.diff(SRGB_TO_LINEAR.astype(int)) >= 0)
+    assert SRGB_TO_LINEAR[128] == 55  # sRGB mid-grey is 21.6 % of full scale
