@@ -20,6 +20,11 @@ from localizer._kernels.verify import rough_ends as rough_ends_kernel
 from localizer.camera import Camera
 from localizer.recognize import Stack
 
+#: the sign of alpha read from the bars' measured height difference is sure (not ambiguous)
+#: when the difference is at least this many standard errors from zero
+#: (:func:`localizer.thesis_edges.height_sign`)
+SIGN_SIGMAS = 3.0
+
 
 @dataclass(frozen=True)
 class EdgeMeasurements:
@@ -30,7 +35,10 @@ class EdgeMeasurements:
     y of the bar tops/bottoms at the bar centre columns ``bar_cx`` (2,);
     ``top_sigma``/``bottom_sigma`` (2,). ``rows`` (first, last) image rows used
     for the vertical edges. :attr:`points` maps names to ``(N, 2)`` edge points for
-    drawing.
+    drawing. ``height_sign``: the sign of ``h2 - h1`` that chooses the root of eq 4.13
+    (§4.2.2; 0 undecided), ``height_difference``: ``(h2 - h1, its sd)`` (px) measured over
+    each bar's columns (NaN if not measured); both from
+    :func:`localizer.thesis_edges.thesis_edges`.
     """
 
     edges_x: np.ndarray
@@ -41,9 +49,17 @@ class EdgeMeasurements:
     top_sigma: np.ndarray
     bottom_sigma: np.ndarray
     rows: tuple[int, int]
-    height_sign: int = 0  # thesis tie-break: sign of (h2 - h1) averaged over each bar's columns
+    height_sign: int = 0
     #: (x (n, 4), rows (n,), cols (m,), y (m,)): the edge points measured, for ``points``
     _raw: tuple | None = field(default=None, compare=False, repr=False)
+    height_difference: tuple[float, float] = (float("nan"), float("nan"))
+
+    @property
+    def height_sign_sure(self) -> bool:
+        """Whether :attr:`height_difference` is at least :data:`SIGN_SIGMAS` standard errors
+        from zero (the sign of alpha is then measured, not a tie-break's guess)."""
+        diff, sd = self.height_difference
+        return bool(abs(diff) >= SIGN_SIGMAS * sd)
 
     @property
     def bar_heights(self) -> np.ndarray:

@@ -24,9 +24,9 @@ def thesis_alpha(ratio: float, beta_p: float, sign: int) -> tuple[float, tuple[f
         ratio: ``(H/W) * (dx/dy)``, the measured width/height ratio over the true one.
         beta_p: beta' (rad), the bearing of the image mid-point m (eq 4.4).
         sign: +1 if the right bar is taller (right edge nearer, alpha > 0), -1 if
-            the left bar is taller, 0 if undecided. (Ties of the half-pixel heights at
-            the centre columns are first broken by the heights averaged over each
-            bar's columns, :func:`localizer.thesis_edges.thesis_edges`.)
+            the left bar is taller, 0 if undecided
+            (:func:`localizer.thesis_edges.height_sign`: the subpixel heights averaged
+            over each bar's columns, else the half-pixel heights at the bar centres).
     Returns:
         ``(alpha, (alpha1, alpha2), ambiguous)``. ``alpha1 = beta' + phi`` (4.14),
         ``alpha2 = beta' - phi`` (4.15), ``phi = acos(ratio * cos beta')`` (argument
@@ -34,9 +34,9 @@ def thesis_alpha(ratio: float, beta_p: float, sign: int) -> tuple[float, tuple[f
         both agree (the interval ``0..2 beta'`` of §4.2.2) the one of larger
         magnitude, which reproduces the thesis's over-estimates at small angles
         (Tables 5.3-5.4: 0 -> 4.4, 5 -> 13, 0 -> 6.8, 10 -> 14.5 degrees); if none
-        agrees, the one nearer zero. When the half-pixel heights tie (``sign`` 0)
-        the target is assumed turned towards the camera: the sign of beta' is
-        used (the root nearer zero if beta' is 0 too).
+        agrees, the one nearer zero. When the sign is undecided (``sign`` 0: the bar
+        heights equal) the target is assumed turned towards the
+        camera: the sign of beta' is used (the root nearer zero if beta' is 0 too).
     """
     phi = math.acos(min(1.0, max(-1.0, ratio * math.cos(beta_p))))
     a1, a2 = beta_p + phi, beta_p - phi
@@ -52,8 +52,7 @@ def thesis_alpha(ratio: float, beta_p: float, sign: int) -> tuple[float, tuple[f
     return (a1 if abs(a1) <= abs(a2) else a2), (a1, a2), False
 
 
-def _thesis_core(edges_x: np.ndarray, h1: float, h2: float, camera: Camera, target: TargetSpec,
-                 tie_sign: int = 0):
+def _thesis_core(edges_x: np.ndarray, h1: float, h2: float, camera: Camera, target: TargetSpec, sign: int):
     w = edges_x[3] - edges_x[0]  # target width in the image (px), §4.7
     h = 0.5 * (h1 + h2)  # centre height (px)
     xc = 0.25 * (edges_x[0] + edges_x[1] + edges_x[2] + edges_x[3])  # mean of the bar centre lines
@@ -62,7 +61,6 @@ def _thesis_core(edges_x: np.ndarray, h1: float, h2: float, camera: Camera, targ
     beta_p = math.atan(tb)
     d = z * math.sqrt(1.0 + tb * tb)  # eq 4.5
     ratio = target.active_height / target.active_width * (w / camera.fx) / (h / camera.fy)
-    sign = tie_sign if abs(h2 - h1) < 1e-9 else (1 if h2 > h1 else -1)
     alpha, cands, amb = thesis_alpha(ratio, beta_p, sign)
     return d, beta_p, alpha, z, cands, amb
 
@@ -72,24 +70,30 @@ def thesis_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec) -> Pose
 
     The covariance propagates the half-pixel rule's uniform +-0.5 px error of
     each edge through the equations by secant differences of one standard
-    deviation (finite near the acos singularity).
+    deviation (finite near the acos singularity). The root is the one of the sign of
+    ``m.height_sign`` (eqs 4.14-4.15; for measurements without one, the sign of the
+    bar-centre heights' difference); unless that sign was measured beyond its noise
+    (:attr:`EdgeMeasurements.height_sign_sure`) and the roots differ in sign, the
+    estimate is ``ambiguous`` and the variance of alpha includes the roots' spread.
     """
     h1, h2 = (float(v) for v in m.bar_heights)
     ex = np.asarray(m.edges_x, float)
-    d, beta_p, alpha, z, cands, amb = _thesis_core(ex, h1, h2, camera, target, m.height_sign)
+    sign = m.height_sign or (0 if abs(h2 - h1) < 1e-9 else (1 if h2 > h1 else -1))
+    d, beta_p, alpha, z, cands, amb = _thesis_core(ex, h1, h2, camera, target, sign)
+    amb = amb or (not m.height_sign_sure and cands[0] * cands[1] < 0)
     base = np.array([d, beta_p, alpha])
     s = float(m.edges_sigma[0])
     cols = []
     for k in range(4):
         e = ex.copy()
         e[k] += s
-        dd, bb, aa, *_ = _thesis_core(e, h1, h2, camera, target, m.height_sign)
+        dd, bb, aa, *_ = _thesis_core(e, h1, h2, camera, target, sign)
         cols.append((np.array([dd, bb, aa]) - base))
     for k in range(2):
         hh = [h1, h2]
         hh[k] += s * math.sqrt(2.0)
-        # keep the sign decision of the measurement itself
-        dd, bb, aa, *_ = _thesis_core(ex, hh[0], hh[1], camera, target, m.height_sign)
+        # the sign decision is the measurement's own
+        dd, bb, aa, *_ = _thesis_core(ex, hh[0], hh[1], camera, target, sign)
         if (aa > 0) != (alpha > 0) and abs(alpha) > 1e-9:
             aa = alpha
         cols.append((np.array([dd, bb, aa]) - base))
