@@ -232,25 +232,32 @@ def _edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: f
 
 
 def _linear_view(img: np.ndarray, camera: Camera, v):
-    """The neighbourhood of the verified stack ``v`` (the bars, their margins and as much again on
-    every side) linearized through the sRGB inverse: ``(crop, camera, stack, (c0, r0))``: the
-    crop, its camera (its principal point moved by the crop's first column ``c0`` and row
-    ``r0``), and ``v`` in the crop's pixels with its grey levels linearized."""
+    """The neighbourhood of the verified stack ``v`` (the bars, their margins and the blur's reach)
+    linearized through the sRGB inverse: ``(crop, camera, stack, (c0, r0))``: the crop, its
+    camera (the principal point moved by the crop's first column ``c0`` and row ``r0``), and
+    ``v`` in the crop's pixels with its grey levels linearized."""
+    import cv2
+
     h, w = img.shape
     (t0, b0), (t1, b1) = v.ends
     xb = v.bounds
-    hb = max(b0, b1) - min(t0, t1) + 1
-    wd = float(xb[3] - xb[0])
-    r0, r1 = max(0, int(min(t0, t1) - hb - 8)), min(h, int(max(b0, b1) + hb + 9))
-    c0, c1 = max(0, int(math.floor(xb[0] - wd - 8))), min(w, int(math.ceil(xb[3] + wd + 9)))
-    crop = SRGB_TO_LINEAR[img[r0:r1, c0:c1]]
+    pad_r = (max(b0, b1) - min(t0, t1) + 1) // 2 + 12  # the margins (a quarter of a bar) and more
+    pad_c = int(xb[3] - xb[0]) // 2 + 12
+    r0, r1 = max(0, int(min(t0, t1)) - pad_r), min(h, int(max(b0, b1)) + pad_r + 1)
+    c0, c1 = max(0, int(xb[0]) - pad_c), min(w, int(xb[3]) + pad_c + 1)
+    crop = cv2.LUT(img[r0:r1, c0:c1], SRGB_TO_LINEAR)
     cam = Camera(camera.fx, camera.fy, camera.cx - c0, camera.cy - r0, c1 - c0, r1 - r0, camera.dist)
-    grey = np.arange(256.0)
     lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((int(a) - r0, int(b) - r0) for a, b in v.ends),
                              median_x=None if v.median_x is None else v.median_x - c0,
-                             dark=float(np.interp(v.dark, grey, SRGB_TO_LINEAR)),
-                             bright=float(np.interp(v.bright, grey, SRGB_TO_LINEAR)))
+                             dark=_linear_grey(v.dark), bright=_linear_grey(v.bright))
     return crop, cam, lv, (c0, r0)
+
+
+def _linear_grey(g: float) -> float:
+    """:data:`SRGB_TO_LINEAR` at the grey level ``g`` (0..255), interpolated."""
+    i = min(max(int(g), 0), 254)
+    f = min(max(g - i, 0.0), 1.0)
+    return float((1.0 - f) * int(SRGB_TO_LINEAR[i]) + f * int(SRGB_TO_LINEAR[i + 1]))
 
 
 def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) -> bool:
