@@ -82,6 +82,63 @@ def blurred_step(j, e, w, dw):
     return f, de, ds
 
 
+#: erfc(x) = t P(t) exp(-x^2), t = 1 / (1 + ERFC_A x), x >= 0: P by least squares on 4,000
+#: Chebyshev nodes of t in (0, 1] (fitted to scipy's erfcx); |error| of erf < 3e-10 on x >= 0
+ERFC_A = 0.4
+ERFC_P = (0.2256758332947104, 0.22567586974362633, 0.20762010891864788, 0.17154032411404363,
+          0.12151196623511365, 0.06690225653328269, 0.02319663790572366, -0.04746998944097801,
+          0.08448855456246022, -0.22040214716569378, 0.22629027932494436, -0.10312632755693056,
+          0.01809663381705614)
+
+
+@inline
+def gauss_cdf_pdf(u):
+    """The standard normal ``(Phi(u), phi(u))`` from one ``exp`` (:data:`ERFC_P`: |error| of Phi
+    < 1.5e-10; ``math.erf`` and ``math.exp`` cost three ``exp``'s worth)."""
+    x = abs(u) * _SQRT_HALF
+    e = math.exp(-x * x)
+    t = 1.0 / (1.0 + ERFC_A * x)
+    c = ERFC_P
+    poly = c[12]
+    poly = c[11] + t * poly
+    poly = c[10] + t * poly
+    poly = c[9] + t * poly
+    poly = c[8] + t * poly
+    poly = c[7] + t * poly
+    poly = c[6] + t * poly
+    poly = c[5] + t * poly
+    poly = c[4] + t * poly
+    poly = c[3] + t * poly
+    poly = c[2] + t * poly
+    poly = c[1] + t * poly
+    poly = c[0] + t * poly
+    half_tail = 0.5 * t * poly * e  # Phi(-|u|)
+    return (1.0 - half_tail if u >= 0.0 else half_tail), _INV_SQRT_2PI * e
+
+
+@inline
+def closed_step(j, e, sd, reach, shared, u_prev, c_prev, p_prev):
+    """:func:`edge_fraction`'s closed form (blur sd ``sd`` >= :data:`ANALYTIC_SD`, cut-off
+    ``reach``) of pixel ``j`` for an edge at ``e``, through :func:`gauss_cdf_pdf`. When
+    ``shared``, the pixel's lower side ``j - 0.5`` is the upper side of the pixel before it
+    (``j - 1``, same edge and blur), whose ``(u, Phi(u), phi(u))`` were ``u_prev, c_prev,
+    p_prev``: one ``exp`` per pixel instead of two. Returns ``(F, dF/de, dF/ds, u1, Phi(u1),
+    phi(u1), ok)``: the last four this pixel's upper side, for the pixel after it (``ok``
+    false when the pixel was beyond the cut-off)."""
+    if j - e > reach:
+        return 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    if e - j > reach:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    if shared:
+        u0, c0, p0 = u_prev, c_prev, p_prev
+    else:
+        u0 = (j - 0.5 - e) / sd
+        c0, p0 = gauss_cdf_pdf(u0)
+    u1 = (j + 0.5 - e) / sd
+    c1, p1 = gauss_cdf_pdf(u1)
+    return sd * (u1 * c1 + p1 - u0 * c0 - p0), c0 - c1, p1 - p0, u1, c1, p1, True
+
+
 @inline
 def edge_fraction(j, e, w, dw):
     """:func:`blurred_step` of pixel ``j`` for an edge at ``e``, short-cut to ``(1, 0, 0)``

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from localizer._jit import jit
-from localizer._kernels.blur import CLIP, blur_weights, edge_fraction
+from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction
 from localizer._kernels.projection import bar_edge_u, edge_x, edge_x_jacobian, plane, ray_inverse_range
 from localizer._kernels.records import ColumnModel, Refinement, Selection
 
@@ -21,10 +21,22 @@ MARGIN_SHARE = 0.5
 REACH = 4.0
 #: most rows (columns) sampled along a vertical (horizontal) edge
 MAX_LINES = 24
-#: smallest blur sd of the model (px)
+#: smallest and largest blur sd of the model (px)
 SIGMA_MIN = 0.2
+SIGMA_MAX = 4.0
 #: LM iterations
 ITERATIONS = 30
+#: a fit ends when a step lowers the cost by less than this share of it (or promises less)
+TOL = 1e-7
+#: ... a start's fit (it only has to find its basin; the best start's fit then goes on at TOL)
+START_TOL = 1e-5
+#: a start whose fit comes within this share of an earlier start's end cost (its cost, and the
+#: end's quadratic model of it) is in that end's basin (:func:`same_basin`)
+BASIN = 1e-2
+#: a start's fit whose cost is still above ABANDON times the lowest end cost of the starts
+#: before it after ABANDON_AFTER steps is abandoned (it is headed for a worse minimum)
+ABANDON = 100.0
+ABANDON_AFTER = 2
 #: starts of the fit: the edge-based pose scaled along its line of sight, and turned (rad)
 SCALES = (1.0, 0.985, 1.015, 0.97, 1.03)
 TURN = math.radians(12.0)
@@ -85,8 +97,21 @@ def evaluate(p, obs, sel, cam, target, positive, res, J, want_j):
     ``J`` (n, 7) (analytic). ``cam``: :class:`~localizer._kernels.records.Intrinsics`,
     ``target``: :class:`~localizer._kernels.records.TargetConstants`. Returns the cost (sum
     of squares, grey levels^2)."""
+    return model(p, obs, sel, cam, target, positive, res, J, want_j, False)[0]
+
+
+@jit
+def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
+    """:func:`evaluate`; when ``compact``, only the pixels whose residual moves with ``p`` (not
+    censored) are written, to the first rows of ``res`` and ``J``. Returns ``(cost, rows
+    written)``. A blur from :data:`~localizer._kernels.blur.ANALYTIC_SD` on takes the closed
+    form, a pixel's lower side shared with the upper side of the pixel above it when that
+    is in the fit too."""
     ucols, pci, pr = sel.ucols, sel.pci, sel.pr
     kw, kdw = blur_weights(max(p[6], 0.05))
+    closed = kw.size == 1
+    sd = kw[0]
+    reach = 4.5 * sd + 1.0
     n = ucols.size
     fxb = np.empty(n)
     dfxb = np.empty((n, 5))
@@ -95,12 +120,25 @@ def evaluate(p, obs, sel, cam, target, positive, res, J, want_j):
     columns(p, ucols, cam, target, kw, kdw, ColumnModel(fxb, dfxb, ylin, dylin))
     amp = p[5] - p[4]
     pol = -1.0 if positive else 1.0  # d(bright fraction) / d(bars)
+    k = amp * pol
     cost = 0.0
+    w = 0
+    i_prev = -1
+    r_prev = -10
+    ok_t = ok_b = False
+    ut = ct = pt = ub = cb = pb = 0.0
     for q in range(obs.size):
         i = pci[q]
         r = pr[q]
-        ft, dte, dts = edge_fraction(r, ylin[i, 0], kw, kdw)
-        fb, dbe, dbs = edge_fraction(r, ylin[i, 1], kw, kdw)
+        if closed:
+            shared = i == i_prev and r == r_prev + 1
+            ft, dte, dts, ut, ct, pt, ok_t = closed_step(r, ylin[i, 0], sd, reach, shared and ok_t, ut, ct, pt)
+            fb, dbe, dbs, ub, cb, pb, ok_b = closed_step(r, ylin[i, 1], sd, reach, shared and ok_b, ub, cb, pb)
+            i_prev = i
+            r_prev = r
+        else:
+            ft, dte, dts = edge_fraction(r, ylin[i, 0], kw, kdw)
+            fb, dbe, dbs = edge_fraction(r, ylin[i, 1], kw, kdw)
         fy_ = ft - fb
         bars = fxb[i] * fy_
         bf = 1.0 - bars if positive else bars
@@ -115,28 +153,68 @@ def evaluate(p, obs, sel, cam, target, positive, res, J, want_j):
         else:
             rr = m - o
             active = True
-        res[q] = rr
         cost += rr * rr
+        if compact and not active:
+            continue
+        row = w if compact else q
+        w += 1
+        res[row] = rr
         if want_j:
             if active:
-                k = amp * pol
                 for t in range(4):
                     dfy = dte * dylin[i, 0, t] - dbe * dylin[i, 1, t]
                     dfx = dfxb[i, t] if t < 3 else 0.0
-                    J[q, t] = k * (dfx * fy_ + fxb[i] * dfy)
-                J[q, 4] = 1.0 - bf
-                J[q, 5] = bf
-                J[q, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
+                    J[row, t] = k * (dfx * fy_ + fxb[i] * dfy)
+                J[row, 4] = 1.0 - bf
+                J[row, 5] = bf
+                J[row, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
             else:
                 for t in range(7):
-                    J[q, t] = 0.0
-    return cost
+                    J[row, t] = 0.0
+    return cost, w
 
 
 @jit
-def lm(p, obs, sel, cam, target, positive, iterations):
+def normal_equations(p, obs, sel, cam, target, positive, res, J):
+    """The cost at ``p`` and the normal equations ``(J^T J, J^T r)`` of :func:`evaluate`'s
+    Jacobian, through the buffers ``res`` (n,) and ``J`` (n, 7) (censored pixels left out)."""
+    cost, w = model(p, obs, sel, cam, target, positive, res, J, True, True)
+    Jw = J[:w]
+    return cost, Jw.T @ Jw, Jw.T @ res[:w]
+
+
+@jit
+def _solve(A, g, lam, p):
+    """The damped Gauss-Newton step ``(A + lam diag(A)) step = g`` at ``p``, with the blur sd
+    held where it is when it is at a bound and the step would take it further out."""
+    M = A.copy()
+    for a in range(7):
+        M[a, a] += lam * A[a, a] + 1e-12
+    step = np.linalg.solve(M, g)
+    s6 = p[6] - step[6]
+    if (s6 > SIGMA_MAX and p[6] >= SIGMA_MAX) or (s6 < SIGMA_MIN and p[6] <= SIGMA_MIN):
+        for a in range(7):
+            M[6, a] = 0.0
+            M[a, 6] = 0.0
+        M[6, 6] = 1.0
+        h = g.copy()
+        h[6] = 0.0
+        step = np.linalg.solve(M, h)
+    return step
+
+
+@jit
+def lm(p, obs, sel, cam, target, positive, iterations, tol, end_p, end_A, end_cost, n_ends, best):
     """Levenberg-Marquardt of :func:`evaluate` from ``p`` (7,), updated in place, at most
-    ``iterations`` steps. Returns the cost.
+    ``iterations`` steps, ended when a step lowers the cost by less than ``tol`` of it or the
+    linear model promises less than that. The ends of earlier fits of the same pixels (their
+    parameters ``end_p`` (k, 7), normal matrices ``end_A`` (k, 7, 7) and costs ``end_cost``
+    (k,), ``n_ends`` of them filled): a fit that reaches the bowl of one of them stops there
+    (:func:`same_basin`: it would end where that one did). Returns ``(cost, merged)``:
+    ``merged`` the index of that end, -2 when the fit was abandoned (after
+    :data:`ABANDON_AFTER` steps its cost still above :data:`ABANDON` times ``best``, the
+    lowest end cost so far), else -1 (and the normal matrix at ``p`` is left in
+    ``end_A[n_ends]`` when there is room).
 
     The damped normal equations are solved by ``np.linalg.solve`` (LAPACK), not by
     :mod:`localizer.smallmat` like the other fits: LAPACK's (OpenBLAS's) operation order
@@ -145,42 +223,67 @@ def lm(p, obs, sel, cam, target, positive, iterations):
     n = obs.size
     res = np.empty(n)
     J = np.empty((n, 7))
-    cost = evaluate(p, obs, sel, cam, target, positive, res, J, True)
+    cost, A, g = normal_equations(p, obs, sel, cam, target, positive, res, J)
     lam = 1e-3
     q = np.empty(7)
-    rq = np.empty(n)
-    Jq = np.empty((n, 7))
-    A = J.T @ J
-    g = J.T @ res
     for it in range(iterations):
-        M = A.copy()
-        for k in range(7):
-            M[k, k] += lam * A[k, k] + 1e-12
-        step = np.linalg.solve(M, g)
-        for k in range(7):
-            q[k] = p[k] - step[k]
-        q[6] = min(max(q[6], SIGMA_MIN), 3.0)
+        step = _solve(A, g, lam, p)
+        for a in range(7):
+            q[a] = p[a] - step[a]
+        q[6] = min(max(q[6], SIGMA_MIN), SIGMA_MAX)
         q[5] = max(q[5], q[4] + 1.0)
         if not q[1] > 0:
             lam *= 10.0
             continue
-        cq = evaluate(q, obs, sel, cam, target, positive, rq, Jq, True)
+        cq, Aq, gq = normal_equations(q, obs, sel, cam, target, positive, res, J)
         if cq < cost:
-            conv = cost - cq < 1e-7 * (cost + 1e-9)
-            p[:] = q
-            res[:] = rq
-            J[:, :] = Jq
-            A = J.T @ J
-            g = J.T @ res
+            conv = cost - cq < tol * (cost + 1e-9)
+            for a in range(7):
+                p[a] = q[a]
+            A = Aq
+            g = gq
             cost = cq
             lam = max(lam * 0.3, 1e-7)
             if conv:
                 break
+            for e in range(n_ends):
+                if same_basin(p, cost, end_p[e], end_A[e], end_cost[e]):
+                    return cost, e
+            if it + 1 >= ABANDON_AFTER and cost > ABANDON * best:
+                return cost, -2
         else:
+            # the step the linear model promised (2 s.g - s.A.s) is all a more damped one can give
+            pred = 0.0
+            for a in range(7):
+                sa = p[a] - q[a]
+                pred += 2.0 * sa * g[a]
+                for b in range(7):
+                    pred -= sa * A[a, b] * (p[b] - q[b])
+            if pred < tol * (cost + 1e-9):
+                break
             lam *= 10.0
             if lam > 1e7:
                 break
-    return cost
+    if n_ends < end_cost.size:
+        for a in range(7):
+            for b in range(7):
+                end_A[n_ends, a, b] = A[a, b]
+    return cost, -1
+
+
+@jit
+def same_basin(p, cost, pe, Ae, ce):
+    """Whether ``p`` (cost ``cost``) lies in the bowl of an earlier fit's end ``pe`` (7,) (normal
+    matrix ``Ae``, cost ``ce``): no lower, and both its cost and the end's quadratic model of it
+    (``ce + d^T Ae d``, ``d = p - pe``) within :data:`BASIN` of ``ce``."""
+    if cost < ce:
+        return False
+    quad = 0.0
+    for a in range(7):
+        da = p[a] - pe[a]
+        for b in range(7):
+            quad += da * Ae[a, b] * (p[b] - pe[b])
+    return quad < BASIN * ce and cost - ce < BASIN * ce
 
 
 @jit
@@ -229,23 +332,35 @@ def select(p, shape, cam, target, share, reach, max_lines):
             if abs(j - xe[k]) <= reach:
                 near_v = True
         on_h = (i % cstride) == 0
+        if not (on_h or near_v):
+            continue
         rstride = max(1, int(math.ceil((ybot - ytop) / max_lines)))
         used = False
-        for r in range(rlo, rhi + 1):
-            near_h = abs(r - ytop) <= reach or abs(r - ybot) <= reach
-            if (near_h and (on_h or near_v)) or (near_v and (r - rlo) % rstride == 0):
-                if n == cap:
-                    cap *= 2
-                    a1 = np.empty(cap, np.int64)
-                    a2 = np.empty(cap, np.int64)
-                    a1[:n] = pci[:n]
-                    a2[:n] = pr[:n]
-                    pci = a1
-                    pr = a2
-                pci[n] = m
-                pr[n] = r
-                n += 1
-                used = True
+        # away from the vertical edges only the rows near the top and the bottom can be in
+        last = rlo - 1
+        for seg in range(1 if near_v else 2):
+            if near_v:
+                lo, hi = rlo, rhi
+            else:
+                yl = ytop if seg == 0 else ybot
+                lo = max(rlo, int(math.floor(yl - reach)), last + 1)
+                hi = min(rhi, int(math.ceil(yl + reach)))
+            for r in range(lo, hi + 1):
+                near_h = abs(r - ytop) <= reach or abs(r - ybot) <= reach
+                if (near_h and (on_h or near_v)) or (near_v and (r - rlo) % rstride == 0):
+                    if n == cap:
+                        cap *= 2
+                        a1 = np.empty(cap, np.int64)
+                        a2 = np.empty(cap, np.int64)
+                        a1[:n] = pci[:n]
+                        a2[:n] = pr[:n]
+                        pci = a1
+                        pr = a2
+                    pci[n] = m
+                    pr[n] = r
+                    n += 1
+                    used = True
+            last = max(last, hi)
         if used:
             ucols[m] = j
             m += 1
@@ -280,6 +395,12 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     n_starts = n_scales * (1 + n_alt) + (2 if wide else 0)
     best = np.empty(7)
     best_cost = np.inf
+    # the ends of the starts' fits, for the later starts to recognise (lm: a start that reaches
+    # an earlier one's basin stops there)
+    end_p = np.empty((n_starts, 7))
+    end_A = np.empty((n_starts, 7, 7))
+    end_cost = np.empty(n_starts)
+    n_ends = 0
     for st in range(n_starts):
         p[:4] = p0
         if st < n_scales * (1 + n_alt):
@@ -295,12 +416,21 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
             continue
         p[4] = dark0
         p[5] = bright0 if bright0 < CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
-        p[6] = max(sigma0, SIGMA_MIN)
+        p[6] = min(max(sigma0, SIGMA_MIN), SIGMA_MAX)
         # iteration counts typed int64, not as the literals 6 and 30: one compiled lm, not two
-        c = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS))
+        c, merged = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS), START_TOL, end_p, end_A,
+                       end_cost, n_ends, best_cost)
+        if merged != -1:
+            continue
+        for a in range(7):
+            end_p[n_ends, a] = p[a]
+        end_cost[n_ends] = c
+        n_ends += 1
         if c < best_cost:
             best_cost = c
             best[:] = p
+    if not best_cost < np.inf:  # every start turned beyond ALPHA_MAX (or no finite fit): nothing to refine
+        return Refinement(False, p, n, 0.0)
     p[:] = best
-    cost = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS))
+    cost, _ = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS), TOL, end_p, end_A, end_cost, 0, np.inf)
     return Refinement(True, p, n, cost)
