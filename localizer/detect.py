@@ -17,6 +17,7 @@ from localizer.numeric import check_choice
 from localizer.observation import ImageMeasurements, TargetObservation
 from localizer.params import METHODS, DetectionStats, DetectorParams
 from localizer.photometric import refine_pose
+from localizer.pyramid import LEVEL_ROWS, detect_pyramid
 from localizer.recognize import find_stacks
 from localizer.subpixel_edges import subpixel_edges
 from localizer.target import TargetSpec
@@ -112,6 +113,15 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
     st = stats if stats is not None else DetectionStats()
+    if p.pyramid and img.shape[0] >= 2 * LEVEL_ROWS and not p.debug_dir:
+        # a large frame: searched on a coarse level, each target measured where its blur is 1-2 px
+        accepted, seconds = st.accepted, st.seconds
+        out = detect_pyramid(functools.partial(detect_targets, target=target, method=method, stats=st), img, camera,
+                             {**dataclasses.asdict(p), "pyramid": False})
+        out = _drop_shared_bars(out, st)
+        st.accepted = accepted + len(out)
+        st.seconds = seconds + time.perf_counter() - t0
+        return out
     out: list[TargetObservation] = []
     stacks, verified = find_stacks(img, camera, target, p, st, keep_candidates=bool(p.debug_dir))
     for v in verified:
@@ -288,8 +298,12 @@ def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wi
     by more than the edges' noise where the blur is as wide as a bar."""
     alt = [a for a in est.alpha_candidates if abs(a - est.alpha) > 0.01]
     blurred = blur >= SIGMA_BLURRED
-    r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive), float(v.dark),
-                    float(v.bright), sigma=blur if blurred else 0.4, alt_alpha=alt[0] if alt else None, wide=wide)
+    try:
+        r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive),
+                        float(v.dark), float(v.bright), sigma=blur if blurred else 0.4,
+                        alt_alpha=alt[0] if alt else None, wide=wide)
+    except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):  # a degenerate fit: the edges' answer
+        return est
     if r is None:
         return est
     X, Z, alpha, Y = (float(x) for x in r[0][:4])

@@ -59,6 +59,7 @@ PARAM_RANGES: dict[str, tuple[str, dict]] = {
     "edge_sigma_floor": ("number", dict(low=0.0, high=100.0, unit="px")),
     "photometric": ("choice", {}),
     "response": ("choice", {}),
+    "pyramid": ("bool", {}),
     "max_targets": ("number", dict(low=1, high=65536, integer=True)),
     "max_candidates": ("number", dict(low=1, high=65536, integer=True)),
     "debug_dir": ("path", {}),
@@ -108,6 +109,10 @@ class DetectorParams:
     # linearized through its inverse before its edges are measured); "auto" decides per target
     # from its edges (localizer.detect.ENCODED_SHIFT)
     response: str = "auto"
+    # --- large frames (at least 2 x 480 rows): search a coarse level (area-averaged to about 480
+    # rows), measure each target on a crop of the finest level where its blur is at most 1.5 px
+    # (localizer.pyramid); False: the whole frame at its own resolution
+    pyramid: bool = True
     # --- misc
     max_targets: int = 32  # most targets reported per frame
     max_candidates: int = 256  # most fine searches per frame (bounds the time on hostile frames)
