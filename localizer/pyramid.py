@@ -13,7 +13,9 @@ found there (without the pixel-level refinement) is measured again on a crop of 
 level whose blur is at most ``SIGMA_TARGET`` px (the full frame for a sharp target), with the
 full frame's detector parameters (lengths scaled to the level). A crop is a pinhole camera too (principal point moved by the crop's corner), so
 the pose it gives needs no conversion; its pixel measurements are moved back to the frame's
-coordinates. A target the crop does not confirm keeps the coarse level's measurement.
+coordinates. A candidate of the coarse level that its finer level does not confirm is not
+reported (lettering that a coarse level blurs into bars); one measured on the coarse level
+itself (blurred beyond ``k SIGMA_TARGET`` px) is measured again there, refined.
 
 Pixel convention (:class:`localizer.camera.Camera`): pixel ``j`` covers ``[j - 0.5, j + 0.5]``;
 level ``k``'s pixel ``j`` covers the frame's pixels ``k j .. k j + k - 1``, i.e. frame
@@ -36,8 +38,6 @@ __all__ = ["LEVEL_ROWS", "SIGMA_TARGET", "coarse_factor", "detect_pyramid", "lev
 LEVEL_ROWS = 480
 #: a target is measured on the finest level where its blur sd is at most this (px)
 SIGMA_TARGET = 1.5
-#: a coarse-level blur sd below this (px) is taken as sharp: the frame's own pixels measure it
-SIGMA_SHARP = 0.8
 #: the crop around a coarse target, in target widths either side and bar heights above and below
 CROP_WIDTHS = 0.75
 CROP_HEIGHTS = 0.75
@@ -75,15 +75,16 @@ def _level_camera(camera: Camera, k: int) -> Camera:
                   camera.dist)
 
 
-def _blur(image: np.ndarray, o: TargetObservation) -> float:
-    """The blur sd (px) of observation ``o``'s target in ``image`` (its level's pixels): the row-mean
-    profile over its stack's rows across its four edges (``rows_blur``)."""
+def _blur(image: np.ndarray, o: TargetObservation, step: int = 1) -> float:
+    """The blur sd (px) of observation ``o``'s target in ``image`` (in whose pixels ``o`` is
+    measured): the row-mean profile over every ``step``-th row of its stack (but the first and
+    last eighth) across its four edges (``rows_blur``)."""
     m = o.measurements
     r0, r1 = m.rows
-    rows = np.arange(r0, r1 + 1, dtype=np.int64)
-    e = m.n_rows // 8
-    if rows.size - 2 * e >= 3:
-        rows = rows[e:rows.size - e]
+    e = (r1 - r0 + 1) // 8
+    rows = np.arange(r0 + e, r1 + 1 - e, step, dtype=np.int64)
+    if rows.size < 3:
+        rows = np.arange(r0, r1 + 1, dtype=np.int64)
     bounds = np.asarray(m.edges_x, np.float64) + 0.5
     return float(rows_blur(image, rows, bounds))
 
@@ -154,12 +155,13 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
     # the search: on the coarse level, without the pixel-level refinement (each target is
     # measured again below)
     for o in detect(small, _level_camera(camera, k), **{**_params_at(resolved, k), "photometric": "off"}):
-        s = _blur(small, o)
-        # the finest level whose blur is at most SIGMA_TARGET (the frame itself for a sharp target)
-        j = 1 if s < SIGMA_SHARP else k
-        while j > 1 and s * k / (j // 2) <= SIGMA_TARGET:
-            j //= 2
         coarse = dataclasses.replace(o, measurements=_to_frame(o.measurements, k))
+        # its blur, measured on the frame itself (on the coarse level a sharp edge and one of up to
+        # k px look alike): the finest level where it is at most SIGMA_TARGET px
+        s = _blur(image, coarse, step=max(1, k // 2))
+        j = 1
+        while j < k and s / j > SIGMA_TARGET:
+            j *= 2
         x0, y0, x1, y1 = _crop(camera, coarse.measurements)
         patch = image[y0:y1, x0:x1]
         cam = Camera(camera.fx, camera.fy, camera.cx - x0, camera.cy - y0, x1 - x0, y1 - y0, camera.dist)
@@ -169,6 +171,10 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
         fine = detect(np.ascontiguousarray(patch), cam, **_params_at(resolved, j))
         fine = [dataclasses.replace(f, measurements=_to_frame(f.measurements, j, x0, y0)) for f in fine]
         fine = [f for f in fine if _same(f, coarse)]
-        out.append(fine[0] if len(fine) == 1 else coarse)
+        if len(fine) == 1:
+            out.append(fine[0])
+        elif j == k:  # measured on the coarse level itself: its own measurement, refined there
+            out.append(coarse)
+        # (a candidate of the coarse level that its finer level does not confirm is not reported)
     out.sort(key=lambda o: (o.measurements.rows[0], o.measurements.edges_x[0]))
     return out

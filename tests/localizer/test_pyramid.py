@@ -35,8 +35,20 @@ def test_level_image_is_the_block_mean():
 
 
 def _pyramid(img, cam):
-    p = dataclasses.asdict(DetectorParams().resolved(cam.height, cam.width))
+    p = dataclasses.asdict(DetectorParams(pyramid=False).resolved(cam.height, cam.width))
     return detect_pyramid(detect_targets, img, cam, p)
+
+
+def test_detect_targets_takes_the_pyramid_when_asked_for_large_frames_only():
+    cam = Camera.thesis(16.0).scaled(1024, 960)
+    pose = random_pose(np.random.default_rng(1), Camera.thesis(16.0), distance=(2.0, 3.0))
+    img = render_frame(cam, pose, blur=6.0, noise=1.0, rng=np.random.default_rng(2))
+    via = [o.distance for o in detect_targets(img, cam, pyramid=True)]
+    assert via == [o.distance for o in _pyramid(img, cam)] and len(via) == 1
+    assert via != [o.distance for o in detect_targets(img, cam)]  # (the default: the whole frame)
+    small = Camera.thesis(16.0)
+    img = render_frame(small, pose, blur=0.5, noise=1.0, rng=np.random.default_rng(2))
+    assert [o.distance for o in detect_targets(img, small, pyramid=True)] == [o.distance for o in detect_targets(img, small)]
 
 
 def test_a_sharp_target_is_measured_on_the_frame_itself():
@@ -45,7 +57,7 @@ def test_a_sharp_target_is_measured_on_the_frame_itself():
     for _ in range(4):
         pose = random_pose(rng, Camera.thesis(16.0), distance=(1.5, 4.0), max_alpha=math.radians(45.0))
         img = render_frame(cam, pose, blur=0.5, noise=2.0, rng=rng)
-        direct, pyr = detect_targets(img, cam), _pyramid(img, cam)
+        direct, pyr = detect_targets(img, cam, pyramid=False), _pyramid(img, cam)
         assert len(direct) == len(pyr) == 1
         assert np.allclose(direct[0].measurements.edges_x, pyr[0].measurements.edges_x, atol=0.05)
         assert pyr[0].distance == pytest.approx(direct[0].distance, rel=2e-4)
