@@ -201,6 +201,12 @@ class Camera:
         return Camera(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5,
                       width, height, self.dist)
 
+    def cropped(self, x0: int, y0: int, x1: int, y1: int) -> "Camera":
+        """The camera of the crop ``image[y0:y1, x0:x1]`` (pixels): the same optics, the principal
+        point moved by the crop's corner (a pinhole camera: a pose found in the crop needs no
+        conversion)."""
+        return Camera(self.fx, self.fy, self.cx - x0, self.cy - y0, x1 - x0, y1 - y0, self.dist)
+
     # ------------------------------------------------------------ projection
     def project(self, points_cam) -> np.ndarray:
         """Project camera-frame points (m) to pixel coordinates.

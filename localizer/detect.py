@@ -256,7 +256,7 @@ def _linear_view(img: np.ndarray, camera: Camera, v):
     r0, r1 = max(0, int(min(t0, t1)) - pad_r), min(h, int(max(b0, b1)) + pad_r + 1)
     c0, c1 = max(0, int(xb[0]) - pad_c), min(w, int(xb[3]) + pad_c + 1)
     crop = cv2.LUT(img[r0:r1, c0:c1], SRGB_TO_LINEAR)
-    cam = Camera(camera.fx, camera.fy, camera.cx - c0, camera.cy - r0, c1 - c0, r1 - r0, camera.dist)
+    cam = camera.cropped(c0, r0, c1, r1)
     lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((int(a) - r0, int(b) - r0) for a, b in v.ends),
                              median_x=None if v.median_x is None else v.median_x - c0,
                              dark=_linear_grey(v.dark), bright=_linear_grey(v.bright))

@@ -164,7 +164,7 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
             j *= 2
         x0, y0, x1, y1 = _crop(camera, coarse.measurements)
         patch = image[y0:y1, x0:x1]
-        cam = Camera(camera.fx, camera.fy, camera.cx - x0, camera.cy - y0, x1 - x0, y1 - y0, camera.dist)
+        cam = camera.cropped(x0, y0, x1, y1)
         if j > 1:
             patch = level_image(patch, j)
             cam = _level_camera(cam, j)
