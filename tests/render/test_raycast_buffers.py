@@ -12,7 +12,10 @@ caller's frame buffers.
 * :func:`frame_buffers` are column-major and start on a page;
 * the frame is column-major, its values those of the image: a row-major copy of it is the same
   picture, and the renderer's 8-bit frame, made from the column-major radiance, is row-major
-  and the same image with noise off as a row-major radiance exposed.
+  and the same image with noise off as a row-major radiance exposed;
+* a still, level frame exposed as it is drawn (``draw_exposed``, what ``render()`` does when
+  nothing lies between the scene and the sensor) is, noise included, bit for bit the stored
+  radiance exposed afterwards, at widths that are not a multiple of the store's block too.
 """
 from __future__ import annotations
 
@@ -136,3 +139,28 @@ def test_the_column_major_frame_is_the_image(plant):
     expose(np.ascontiguousarray(rad), params, row_major)
     assert np.array_equal(image, row_major)
     assert np.array_equal(np.ascontiguousarray(rad), rad)
+
+
+@pytest.mark.parametrize("map_name, lens, crop", [("plant_floor", 16.0, None), ("corridor", 8.0, (3, 2, 500, 477))])
+def test_a_frame_exposed_as_it_is_drawn_is_the_stored_radiance_exposed(map_name, lens, crop):
+    from agvsim.sensors.render import RenderConditions
+    from agvsim.sensors.render._sensor_kernels import expose_columns, expose_scratch
+
+    m = load_map(map_name)
+    camera = Camera.thesis(lens)
+    if crop is not None:
+        camera = camera.cropped(*crop)
+    r = CameraRenderer(m, camera, backend="raycast")
+    calls = []
+    draw_exposed = r.engine.draw_exposed
+    r.engine.draw_exposed = lambda *a: calls.append(1) or draw_exposed(*a)
+    for k, p in enumerate(route_poses(m, 6, lookahead_target=False)):
+        for cond in (RenderConditions(), RenderConditions(lighting="dim", noise=False)):
+            image, _ = r.render(p, cond, np.random.default_rng(k))
+            rng = np.random.default_rng(k)  # the same draws: the jitter (none), then the noise's seed
+            rad, dep = r.engine.draw(camera, r.camera_pose(p, cond, rng), cond.level)
+            stored = np.empty_like(image)
+            expose_columns(rad.T, r._sensor_params(cond, rng if cond.noise else None), stored,
+                           expose_scratch(camera.height))
+            assert np.array_equal(image, stored), f"pose {k}, {cond.lighting}: {np.count_nonzero(image != stored)} pixels differ"
+    assert len(calls) == 12  # (the frames did go through draw_exposed)

@@ -19,6 +19,8 @@ import numpy as np
 
 from agvsim.sensors.render._raycast_face import shade_face
 from agvsim.sensors.render._raycast_floor import floor_level, floor_rows
+from agvsim.sensors.render._sensor_kernels import column_counter, expose_flat, store_columns
+from agvsim.sensors.render.ray_records import EXPOSE_BLOCK
 from agvsim.sensors.render._raycast_kernels import (FAR, MAX_HITS, MAX_SPANS, bin_solids, cast_ray, lamp_irradiance,
                                                     raster_lookup, same_spans)
 from localizer._jit import borrowed
@@ -224,7 +226,7 @@ def shade_column(view, faces, decals, tex, light, floor, solids, ns, sp_y0, sp_y
 
 
 @jit
-def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t, work):
+def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, depth_t, work, params, image):
     """Draw one level frame, column-major.
 
     Args:
@@ -235,6 +237,14 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
             nothing), likewise.
         work: the :class:`~agvsim.sensors.render.ray_records.FrameScratch` for ``W`` x ``H``
             (:data:`MAX_SPANS`, :data:`MAX_HITS`, ``scratch_size(H)``).
+        params, image: ``image`` of shape ``(0, 0)``: the radiance is stored in ``radiance_t``.
+            Else ``image`` ``(H, W)`` uint8, C-contiguous, out: the frame exposed by the sensor
+            (:class:`~agvsim.sensors.render.ray_records.SensorParams` ``params``) column by column
+            as it is drawn, exactly as
+            :func:`~agvsim.sensors.render._sensor_kernels.expose_columns` exposes the stored
+            radiance (bit for bit: each column in float32, its own noise counter), and
+            ``radiance_t`` is not written: the radiance never leaves the first levels of the
+            cache (a 1 MB store and load the less).
 
     The column pass shades each column into contiguous scratch and stores it whole where the
     frame holds it contiguously (a row-major frame would take each column a pixel per row,
@@ -259,6 +269,10 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
     radiance_t = borrowed(radiance_t)
     depth_t = borrowed(depth_t)
     work = borrowed(work)
+    image = borrowed(image)
+    exposed = image.shape[0] > 0
+    column = work.column
+    cols = work.exposed
     w = view.width
     h = view.height
     start, items = bin_solids(view, solids)
@@ -374,11 +388,17 @@ def render_view(view, solids, faces, decals, tex, light, floor, radiance_t, dept
                 shade_column(view, faces, decals, tex, light, floor, solids, n_c, my0, my1, mval, mkind, mid, 0,
                              x0, x1, 1.0 / sub, acc, dcol, x0 <= j < x1, work, floor_img, drawn_t, j,
                              floor_depth, h, -1)
-        # the column's radiance, contiguous in the frame: the shaded rows and the rows kept from
-        # the floor pass (its radiance as it is)
+        # the column's radiance, contiguous in the frame (or in ``column``, to be exposed): the
+        # shaded rows and the rows kept from the floor pass (its radiance as it is)
+        out = column if exposed else radiance_t[uj]
         for i in range(np.uint64(s_lo)):
-            radiance_t[uj, i] = acc[i]
+            out[i] = acc[i]
         for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):
-            radiance_t[uj, i] = floor_img[i, uj]
+            out[i] = floor_img[i, uj]
         for i in range(np.uint64(max(s_hi + 1, s_lo)), np.uint64(h)):
-            radiance_t[uj, i] = acc[i]
+            out[i] = acc[i]
+        if exposed:  # into a block of columns, stored in the 8-bit frame a block at a time
+            q = j % EXPOSE_BLOCK
+            expose_flat(column, cols[q, :h], params, column_counter(params, h, j))
+            if q == EXPOSE_BLOCK - 1 or j == w - 1:
+                store_columns(cols, j - q, q + 1, image)

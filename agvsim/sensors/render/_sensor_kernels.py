@@ -32,12 +32,13 @@ import math
 import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros
 
+from agvsim.sensors.render.ray_records import EXPOSE_BLOCK
 from localizer._jit import borrowed
 from localizer._jit import fast_inline as inline
 from localizer._jit import fast_jit as jit
 
-__all__ = ["EXPOSE_BLOCK", "expose", "expose_columns", "expose_scratch", "nearest_depth", "normal_pair",
-           "pair_bits", "splitmix64", "standard_normals"]
+__all__ = ["EXPOSE_BLOCK", "column_counter", "expose", "expose_columns", "expose_flat", "expose_scratch",
+           "nearest_depth", "normal_pair", "pair_bits", "splitmix64", "standard_normals", "store_8x8", "store_columns"]
 
 _F = np.float32
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -141,7 +142,7 @@ def standard_normals(seed, out):
 
 
 @inline
-def _expose_flat(x, o, params, c):
+def expose_flat(x, o, params, c):
     """:func:`expose` of the pixels ``x`` (1-D float32) into ``o`` (1-D uint8), the noise's counter
     at ``c`` (uint64: pair ``k``'s bits are SplitMix64 of ``c + k GOLDEN``, split by :func:`pair_bits`)."""
     n = x.size
@@ -197,11 +198,9 @@ def expose(radiance, params, out):
         out: ``(H, W)`` uint8, C-contiguous, written.
     """
     n = radiance.size
-    _expose_flat(radiance.reshape(n), out.reshape(n), params, np.uint64(params.seed) + _GOLDEN)
+    expose_flat(radiance.reshape(n), out.reshape(n), params, np.uint64(params.seed) + _GOLDEN)
 
 
-#: columns exposed between two stores of :func:`expose_columns` (8 bytes: one 64-bit store a row)
-EXPOSE_BLOCK = 8
 _U8 = np.uint64(8)
 _LO8 = np.uint64(0x00FF00FF00FF00FF)
 _LO16 = np.uint64(0x0000FFFF0000FFFF)
@@ -216,7 +215,7 @@ def _swap(a, b, mask, shift):
 
 
 @inline
-def _store_8x8(src, ib, stride, dst, d0, d_stride):
+def store_8x8(src, ib, stride, dst, d0, d_stride):
     """Words ``src[ib + q stride]`` (``q`` = 0..7; byte ``r`` of word ``q``: row ``r``, column ``q``)
     transposed into ``dst[d0 + r d_stride]`` (byte ``q`` of word ``r``), in three stages of swaps."""
     a0, a1 = _swap(src[ib], src[ib + stride], _LO8, _U8)
@@ -263,39 +262,51 @@ def expose_columns(radiance_t, params, out, cols):
     ``H - H // 2`` pairs of each column before it: every pixel of the frame has its own draws.
     Blocks of :data:`EXPOSE_BLOCK` columns are exposed down their columns (vectorised) into
     ``cols``, then stored 8 rows at a time when ``W`` is a multiple of 8: an 8 x 8 block of bytes
-    transposed in 64-bit words (:func:`_store_8x8`), one store per row of the block.
+    transposed in 64-bit words (:func:`store_8x8`), one store per row of the block.
     """
     radiance_t = borrowed(radiance_t)
     out = borrowed(out)
     cols = borrowed(cols)
     w, h = radiance_t.shape
-    pairs = np.uint64(h - h // 2)
-    c0 = np.uint64(params.seed) + _GOLDEN
-    step = _GOLDEN * pairs  # the counter's advance per column (modulo 2^64)
-    packed = w % EXPOSE_BLOCK == 0
-    flat = out.reshape(h * w)
-    words = flat.view(np.uint64) if packed else flat[:0].view(np.uint64)
-    uw8 = np.uint64(w // EXPOSE_BLOCK)
-    hb = h // 8  # whole blocks of 8 rows
-    uhb = np.uint64(cols.shape[1] // 8)  # words per row of cols
-    col_words = cols.reshape(cols.size).view(np.uint64)
     for j0 in range(0, w, EXPOSE_BLOCK):
         nb = min(EXPOSE_BLOCK, w - j0)
         for q in range(nb):
-            _expose_flat(radiance_t[j0 + q], cols[q, :h], params, c0 + step * np.uint64(j0 + q))
-        if packed:
-            uj = np.uint64(j0 // EXPOSE_BLOCK)
-            for ib in range(np.uint64(hb)):  # 8 rows at a time: an 8 x 8 block of bytes transposed
-                _store_8x8(col_words, ib, uhb, words, ib * _U8 * uw8 + uj, uw8)
-            for i in range(hb * 8, h):  # the rows past the last block of 8
-                v = np.uint64(cols[0, i])
-                for q in range(1, EXPOSE_BLOCK):  # little-endian: column j0 + q at byte q
-                    v |= np.uint64(cols[q, i]) << np.uint64(8 * q)
-                words[np.uint64(i) * uw8 + uj] = v
-        else:
-            for i in range(h):
-                for q in range(nb):
-                    out[i, j0 + q] = cols[q, i]
+            expose_flat(radiance_t[j0 + q], cols[q, :h], params, column_counter(params, h, j0 + q))
+        store_columns(cols, j0, nb, out)
+
+
+@inline
+def column_counter(params, h, j):
+    """The noise's counter (uint64) at column ``j`` of a column-major frame ``h`` rows high
+    (:func:`expose_columns`): past the ``h - h // 2`` pairs of each column before it."""
+    return np.uint64(params.seed) + _GOLDEN + _GOLDEN * np.uint64(h - h // 2) * np.uint64(j)
+
+
+@inline
+def store_columns(cols, j0, nb, out):
+    """Columns ``j0 .. j0 + nb - 1`` of the row-major 8-bit frame ``out`` ``(H, W)`` (C-contiguous)
+    from their exposed bytes ``cols[q, :H]`` (:func:`expose_columns`'s ``cols``): 8 rows at a time,
+    an 8 x 8 block of bytes transposed in 64-bit words (:func:`store_8x8`), when ``W`` is a
+    multiple of :data:`EXPOSE_BLOCK` (``j0`` then one too), else byte by byte."""
+    h, w = out.shape
+    if w % EXPOSE_BLOCK == 0:
+        words = out.reshape(h * w).view(np.uint64)
+        uw8 = np.uint64(w // EXPOSE_BLOCK)
+        uhb = np.uint64(cols.shape[1] // 8)  # words per row of cols
+        col_words = cols.reshape(cols.size).view(np.uint64)
+        uj = np.uint64(j0 // EXPOSE_BLOCK)
+        hb = h // 8  # whole blocks of 8 rows
+        for ib in range(np.uint64(hb)):
+            store_8x8(col_words, ib, uhb, words, ib * _U8 * uw8 + uj, uw8)
+        for i in range(hb * 8, h):  # the rows past the last block of 8
+            v = np.uint64(cols[0, i])
+            for q in range(1, EXPOSE_BLOCK):  # little-endian: column j0 + q at byte q
+                v |= np.uint64(cols[q, i]) << np.uint64(8 * q)
+            words[np.uint64(i) * uw8 + uj] = v
+    else:
+        for i in range(h):
+            for q in range(nb):
+                out[i, j0 + q] = cols[q, i]
 
 
 @jit

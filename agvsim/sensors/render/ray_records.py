@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["BlurScratch", "Decals", "Faces", "Floor", "FrameScratch", "Light", "MotionBlurParams", "SensorParams",
+__all__ = ["BlurScratch", "Decals", "EXPOSE_BLOCK", "Faces", "Floor", "FrameScratch", "Light", "MotionBlurParams", "SensorParams",
            "Solids", "SpanKind", "Textures", "View"]
 
 
@@ -199,6 +199,10 @@ class BlurScratch(NamedTuple):
                    np.ones(-(-(width + 8) // 8) * 8, np.uint8))
 
 
+#: columns exposed between two stores of the 8-bit frame (8 bytes: one 64-bit store a row;
+#: :func:`agvsim.sensors.render._sensor_kernels.expose_columns`)
+EXPOSE_BLOCK = 8
+
 #: floats past the width in each row of :attr:`FrameScratch.floor_img` (a row of 512 would be 2 kB)
 FLOOR_PAD = 16
 
@@ -234,6 +238,8 @@ class FrameScratch(NamedTuple):
     acc: np.ndarray  # (H,) float64: a column's radiance
     shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
     texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
+    column: np.ndarray  # (H,) float32: a column's radiance, when the frame is exposed as it is drawn
+    exposed: np.ndarray  # (EXPOSE_BLOCK, H rounded up to 8) uint8: a block of exposed columns, likewise
 
     @classmethod
     def of(cls, width: int, height: int, spans: int, hits: int, shade: tuple[int, int]) -> FrameScratch:
@@ -249,4 +255,5 @@ class FrameScratch(NamedTuple):
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(shade[0], f8),
-                   np.zeros(shade[1], np.float32))
+                   np.zeros(shade[1], np.float32), np.zeros(height, np.float32),
+                   np.zeros((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8))

@@ -19,7 +19,8 @@ import numpy as np
 
 from agvsim.sensors.render.lighting import Illumination
 from agvsim.sensors.render.mount import CameraPose
-from agvsim.sensors.render.ray_records import Decals, Faces, Floor, FrameScratch, Light, Solids, Textures, View
+from agvsim.sensors.render.ray_records import (Decals, Faces, Floor, FrameScratch, Light, SensorParams, Solids, Textures,
+                                               View)
 from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
 from localizer.camera import Camera
@@ -30,6 +31,8 @@ NEAR = 0.05  # m, as the pyrender backend's near plane
 SUBCOLUMNS = 4  # sub-column rays of a column that a silhouette crosses
 DECAL_TOLERANCE = 0.005  # m, how far a decal may lie off its wall face
 FLOOR_KEY = "floor-plane:surface:floor"  # the floor's texture entry: scene texture "surface:floor"
+_NO_SENSOR = SensorParams(1.0, 0.0, 1.0, 0.0, 0.0, 0)  # (render_view's sensor when the radiance is stored)
+_NO_IMAGE = np.zeros((0, 0), np.uint8)
 
 
 class RaycastBackend:
@@ -99,8 +102,25 @@ class RaycastBackend:
                 raise ValueError(f"draw_level(out=) needs two writeable {shape} float32 arrays in column-major "
                                  f"(Fortran) order, as frame_buffers() makes; got {got}")
         render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance.T,
-                    depth.T, self._scratch(view.width, view.height))
+                    depth.T, self._scratch(view.width, view.height), _NO_SENSOR, _NO_IMAGE)
         return radiance, depth
+
+    def draw_exposed(self, view: View, params: SensorParams, image: np.ndarray, depth: np.ndarray) -> None:
+        """A level view exposed by the sensor as it is drawn: ``image`` ``(H, W)`` uint8, C-contiguous,
+        overwritten with what :func:`~agvsim.sensors.render._sensor_kernels.expose_columns` makes of
+        :meth:`draw_level`'s radiance with ``params`` (bit for bit), and ``depth`` (as
+        :meth:`draw_level`'s ``out``) with the depth; the radiance is never stored."""
+        from agvsim.sensors.render._raycast_frame import render_view
+
+        shape = (view.height, view.width)
+        if (not isinstance(image, np.ndarray) or image.shape != shape or image.dtype != np.uint8
+                or not image.flags.c_contiguous or not image.flags.writeable):
+            raise ValueError(f"draw_exposed(image=) needs a writeable C-contiguous {shape} uint8 array")
+        if (not isinstance(depth, np.ndarray) or depth.shape != shape or depth.dtype != np.float32
+                or not depth.T.flags.c_contiguous or not depth.flags.writeable):
+            raise ValueError(f"draw_exposed(depth=) needs a writeable {shape} float32 array in column-major order")
+        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, depth.T,
+                    depth.T, self._scratch(view.width, view.height), params, image)
 
     def _scratch(self, width: int, height: int) -> FrameScratch:
         """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""

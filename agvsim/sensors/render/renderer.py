@@ -232,16 +232,25 @@ class CameraRenderer:
             from agvsim.sensors.render.raycast import frame_buffers
 
             self._frame_buffers = frame_buffers(c.width, c.height)
+        v, w = conditions.velocity
+        moving = (v != 0.0 or w != 0.0) and conditions.exposure_time > 0
+        optics = self._optics_apply(conditions)
+        if not moving and not optics and cam_pose.pitch == 0.0 and cam_pose.roll == 0.0:
+            # a still, level frame with nothing between the scene and the sensor: exposed as it
+            # is drawn (the same frame bit for bit as below, without storing the radiance)
+            image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
+            depth = self._frame_buffers[1]
+            self.engine.draw_exposed(self.engine.view(c, cam_pose, conditions.level), self._sensor_params(conditions, rng),
+                                     image, depth)
+            return image, depth
         # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes it
         # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics read
         # row-major copies (and the depth returned for the truth is then the row-major one)
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
-        v, w = conditions.velocity
         motion = None
-        if (v != 0.0 or w != 0.0) and conditions.exposure_time > 0:
+        if moving:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time, z_min=nearest_depth(depth.T))
-        optics = self._optics_apply(conditions)
         if motion is not None or optics:
             if self._row_buffers is None:  # row-major copies, the blurred frame, the blur's work arrays
                 self._row_buffers = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
@@ -255,10 +264,7 @@ class CameraRenderer:
                 radiance = blurred
             if optics:
                 radiance = self._optics(radiance, depth, conditions)
-        s = self.sensor
-        seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
-        params = SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
-                              float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
+        params = self._sensor_params(conditions, rng)
         image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
         if radiance.flags.c_contiguous:
             expose(radiance, params, image)  # the kernel reads it flat
@@ -267,6 +273,13 @@ class CameraRenderer:
                 self._columns_u8 = expose_scratch(c.height)
             expose_columns(radiance.T, params, image, self._columns_u8)
         return image, depth
+
+    def _sensor_params(self, conditions: RenderConditions, rng: np.random.Generator | None) -> SensorParams:
+        """The sensor's constants for one frame: its noise seed drawn from ``rng`` (None: no noise)."""
+        s = self.sensor
+        seed = int(rng.integers(0, 2 ** 63)) if rng is not None else 0
+        return SensorParams(float(s.gain * conditions.exposure), float(s.flare), float(s.full_well / 255.0),
+                            float(s.read_noise), float(conditions.noise_scale if rng is not None else 0.0), seed)
 
     def _optics_apply(self, conditions: RenderConditions) -> bool:
         """Whether :meth:`_optics` changes the radiance under ``conditions``."""
