@@ -15,9 +15,13 @@ import math
 import numpy as np
 
 from agvsim.sensors.render._raycast_kernels import box_edges, decal_cover, raster_lookup, sat_cell
+from agvsim.sensors.render._raycast_rows import plain_rows
+from agvsim.sensors.render._simd import PERMUTE, PERMUTE_WINDOW
 from localizer._jit import fast_inline as inline
 
 __all__ = ["LIGHT_ROWS", "scratch_size", "shade_face"]
+
+_U1 = np.uint64(1)
 
 LIGHT_ROWS = 32.0  # px between the rows where a face's irradiance is evaluated (linear between)
 
@@ -272,8 +276,9 @@ def _irr_at(irr, ym, y0, inv_step, n_l):
 def scratch_size(h):
     """Lengths ``(shade, texels)`` of :func:`shade_face`'s scratch for an image ``h`` rows high:
     float64, the irradiance samples (``h + 2``) and the decal rows' coverage (``2 h``); float32,
-    the two texel columns (``4 h + 8`` each)."""
-    return h + 2 + 2 * h, 2 * (4 * h + 8)
+    the two texel columns (``4 h + 8`` each, and a window's reach past the second:
+    :func:`agvsim.sensors.render._simd.pair_sums8`)."""
+    return h + 2 + 2 * h, 2 * (4 * h + 8) + PERMUTE_WINDOW
 
 
 @inline
@@ -371,80 +376,9 @@ def shade_face(view, faces, decals, tex, light, f, z, y0, y1, x0, x1, gain, acc,
                     n1, t1a, t1b, scratch, y0, inv_step, n_l, acc, scratch[h_img + 2:])
     g = 0.5 * gain  # the mean of the two subsample rows, and the gain
     for lo, hi in ((f_lo, min(b_lo - 1, f_hi)), (max(b_hi + 1, f_lo), f_hi)):  # above and below the band
-        _plain_rows(lo, hi, g, texels, b0, t0a, t0b, b1, t1a, t1b, n1 > 0, scratch, y0, step, n_l, acc)
+        plain_rows(lo, hi, g, texels, b0, t0a, t0b, b1, t1a, t1b, n1 > 0, scratch, y0, step, n_l, acc,
+                    work.rows, PERMUTE)
     if write_depth:  # the pixel centres inside the span: y0 <= i < y1
         d_a = max(int(math.ceil(y0)), i_lo)
         for i in range(np.uint64(d_a), np.uint64(max(min(int(math.ceil(y1)) - 1, i_hi) + 1, d_a))):
             depth[i] = z  # (unsigned: a vectorised fill)
-
-
-#: fractional bits of the fixed-point texel coordinates of :func:`_plain_rows`
-FIXED_BITS = 32
-_FIXED_ONE = float(1 << FIXED_BITS)
-_FIXED_INV = np.float32(1.0 / _FIXED_ONE)  # (float32: the texel columns' interpolation is float32)
-_U1 = np.uint64(1)
-_UBITS = np.uint64(FIXED_BITS)
-_UMASK = np.uint64((1 << FIXED_BITS) - 1)
-
-
-@inline
-def _fixed(x):
-    """``x >= 0`` texels as a fixed-point integer (:data:`FIXED_BITS` fractional bits), unsigned."""
-    return np.uint64(np.int64(x * _FIXED_ONE))
-
-
-@inline
-def _lerp_fixed(buf, o, p):
-    """``buf[o:]`` interpolated linearly at the fixed-point coordinate ``p`` (unsigned: array
-    indices without a test for negative ones)."""
-    q = o + (p >> _UBITS)
-    return buf[q] + (buf[q + _U1] - buf[q]) * (np.float32(np.int64(p & _UMASK)) * _FIXED_INV)
-
-
-@inline
-def _plain_rows(lo, hi, g, buf, b0, t0a, t0b, b1, t1a, t1b, two, irr, y0, step, n_l, acc):
-    """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them: ``g`` x the
-    sum of the two subsamples of each level (``buf[b0:]``, ``buf[b1:]``: the levels' texel
-    columns, weighted, float32: interpolated in float32) times the irradiance (``irr[:n_l]``).
-
-    The texel columns reach a row beyond the span's ends (:func:`_texel_column`), so the
-    subsamples need no clamping; their coordinates step by a constant per row, in fixed
-    point (:data:`FIXED_BITS` fractional bits: 2e-10 texel, no float-to-int conversion per
-    sample; unsigned, a negative step wrapping modulo 2^64); the irradiance is stepped
-    linearly within each of its segments (``step`` rows from ``y0``). ``two``: False when the second
-    level has weight 0 (magnified: most walls); its subsamples (+0.0) would not change the sum."""
-    if hi < lo:
-        return
-    d0 = 0.25 * t0b
-    d1 = 0.25 * t1b
-    m0 = min(max(int((lo - y0) / step), 0), n_l - 2)
-    m1 = min(max(int((hi - y0) / step), 0), n_l - 2)
-    # the subsamples' coordinates at row lo and their step per row
-    pa = _fixed(t0a + t0b * lo - d0)
-    pb = _fixed(t0a + t0b * lo + d0)
-    pc = _fixed(t1a + t1b * lo - d1)
-    pd = _fixed(t1a + t1b * lo + d1)
-    s0 = np.uint64(np.int64(t0b * _FIXED_ONE))
-    s1 = np.uint64(np.int64(t1b * _FIXED_ONE))
-    o0 = np.uint64(b0)
-    o1 = np.uint64(b1)
-    for m in range(m0, m1 + 1):
-        a = max(lo, int(math.ceil(y0 + m * step))) if m > m0 else lo
-        b = min(hi, int(math.ceil(y0 + (m + 1) * step)) - 1) if m < m1 else hi
-        slope = g * (irr[m + 1] - irr[m]) / step
-        e = g * irr[m] + (a - (y0 + m * step)) * slope
-        if two:
-            for i in range(np.uint64(a), np.uint64(b + 1)):
-                acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb) + _lerp_fixed(buf, o1, pc)
-                           + _lerp_fixed(buf, o1, pd)) * e
-                e += slope
-                pa += s0
-                pb += s0
-                pc += s1
-                pd += s1
-        else:
-            for i in range(np.uint64(a), np.uint64(b + 1)):
-                acc[i] += (_lerp_fixed(buf, o0, pa) + _lerp_fixed(buf, o0, pb)) * e
-                e += slope
-                pa += s0
-                pb += s0

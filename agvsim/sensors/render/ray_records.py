@@ -238,6 +238,7 @@ class FrameScratch(NamedTuple):
     acc: np.ndarray  # (H,) float64: a column's radiance
     shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
     texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
+    rows: np.ndarray  # (2 (H + 8),) float32: a face span's filtered texture per row, per mip level
     column: np.ndarray  # (H,) float32: a column's radiance, when the frame is exposed as it is drawn
     exposed: np.ndarray  # (EXPOSE_BLOCK, H rounded up to 8) uint8: a block of exposed columns, likewise
 
@@ -255,5 +256,6 @@ class FrameScratch(NamedTuple):
                    np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
                    np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
                    np.zeros(height), np.zeros(shade[0], f8),
-                   np.zeros(shade[1], np.float32), np.zeros(height, np.float32),
+                   np.zeros(shade[1], np.float32), np.zeros(2 * (height + 8), np.float32),
+                   np.zeros(height, np.float32),
                    np.zeros((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8))
