@@ -70,30 +70,22 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def settings_of(args: dict):
+    """The :class:`~agvsim.loop.drive.DriveSettings` of a drift run's settings (``base`` in
+    :func:`_run`)."""
+    from agvsim.loop.drive import DriveSettings
+
+    return DriveSettings(map=args["map"], route=args["route"], distance=args["distance"], odometry=args["odometry"],
+                         camera_rate=args["camera_rate"], latency=args["latency"], vision=not args["no_vision"],
+                         observations=args["observations"], backend=args["backend"],
+                         drop_targets=args["drop_targets"], false_rate=args["false_rate"],
+                         camera_mount=args.get("camera_mount"))
+
+
 def _job(args: dict):
     """One seed in a worker process: returns (seed, MissionLog). Renderer created lazily in the worker."""
-    import numpy as np
+    from agvsim.loop.drive import drive_seed
 
-    from agvsim.loop.mission import MissionConfig, run_mission
-    from agvsim.sensors import GeometricNoise, VisionConfig, make_source
-    from agvsim.vehicle.simulation import SimConfig
-    from agvsim.world import load_map
-
-    world_map = load_map(args["map"])
-    if args["drop_targets"]:
-        world_map = world_map.without_targets(args["drop_targets"])
-    config = MissionConfig(route=args["route"], distance=args["distance"], camera_rate=args["camera_rate"],
-                           latency=args["latency"], vision=not args["no_vision"],
-                           sim=SimConfig(odometry=args["odometry"]),
-                           vision_config=VisionConfig(mount=args.get("camera_mount")).for_map(world_map))
-    source = None
-    if config.vision:
-        kw = {}
-        if args["observations"] == "geometric":
-            kw["noise"] = GeometricNoise(false_rate=args["false_rate"])
-        if args["observations"] == "rendered":
-            kw["backend"] = args["backend"]
-        source = make_source(args["observations"], world_map, config.vision_config, **kw)
     queue = args.get("queue")
     last = [0.0]
 
@@ -103,7 +95,7 @@ def _job(args: dict):
             queue.put(step)
             last[0] += step
 
-    run_log = run_mission(world_map, source, np.random.default_rng(args["seed"]), config, progress)
+    run_log = drive_seed(settings_of(args), args["seed"], progress)
     if queue is not None:
         queue.put(max(int(round(args["distance"] - last[0])), 0))
     return args["seed"], run_log

@@ -22,6 +22,7 @@ import numpy as np
 from agvsim.world import geometry as geo
 from agvsim.world.spatial import Solids
 from localizer.mount import CameraMount
+from localizer.numeric import check_number
 from localizer.target import POLARITIES, TargetSpec
 
 __all__ = ["DEFAULT_SURFACE", "DEFAULT_WALL_HEIGHT", "LightingZone", "Map", "MapTarget", "Obstacle", "Station",
@@ -210,6 +211,13 @@ class Map:
             raise ValueError(f"without_targets: every must be a whole number >= 2, got {every!r}")
         keep = tuple(t for i, t in enumerate(self.targets) if (i - offset) % every != 0)
         return replace(self, targets=keep)
+
+    def with_lighting_scaled(self, scale: float) -> "Map":
+        """A copy with every illumination level (the default and each zone's) times ``scale``
+        (> 0): the same plant, brighter or dimmer, for lighting studies."""
+        check_number("with_lighting_scaled: scale", scale, low=0.0, low_open=True)
+        zones = tuple(replace(z, level=z.level * scale) for z in self.lighting_zones)
+        return replace(self, lighting_default=self.lighting_default * scale, lighting_zones=zones)
 
     # ------------------------------------------------------------ lookups
 

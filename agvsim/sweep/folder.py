@@ -1,0 +1,121 @@
+"""A sweep's results folder: the spec beside the rows, each run written the moment it ends.
+
+``agvsim sweep SPEC --out DIR`` keeps, in ``DIR``:
+
+* ``sweep.json``: what makes the sweep this sweep (base, points, seeds), the spec as read, the
+  software's version; ``spec.yaml``: the spec file as given. Written first.
+* ``runs/pNNNN_sNNNN.json``: one run's row (:func:`agvsim.sweep.runs.run_unit`), written
+  atomically when it ends (:func:`agvsim.commands.run_folder.atomic_write`): a kill at any
+  moment leaves no half-written file. A run whose row is there with status ``ok`` is finished
+  and not run again; a failed run is run again by the next invocation.
+* the table, the summary and the plots (:mod:`agvsim.sweep.report`), written at the end and by
+  ``agvsim sweep report DIR``.
+
+Another spec in the same folder is refused (nothing written before is lost) unless
+``restart``, which deletes the old runs and outputs first.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+from agvsim.commands.run_folder import atomic_write
+
+__all__ = ["SweepFolder", "read_rows", "software_version"]
+
+
+def software_version() -> dict:
+    """``{"agvsim": version, "commit": git commit or None}`` of the running code."""
+    import subprocess
+    from importlib import metadata
+
+    try:
+        version = metadata.version("agvsim")
+    except metadata.PackageNotFoundError:
+        version = None
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                                text=True, timeout=5).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    return {"agvsim": version, "commit": commit}
+
+
+class SweepFolder:
+    """The results folder of one sweep (module docstring).
+
+    Args:
+        out: the folder.
+        spec: the :class:`~agvsim.sweep.spec.SweepSpec`.
+        restart: delete an earlier sweep's runs and outputs in ``out`` first.
+    Raises:
+        ValueError: ``out`` is a file, or holds another sweep and ``restart`` is False.
+    """
+
+    RECORD = "sweep.json"
+
+    def __init__(self, out: str | Path, spec, restart: bool = False):
+        self.out = Path(out)
+        self.runs_dir = self.out / "runs"
+        if self.out.exists() and not self.out.is_dir():
+            raise ValueError(f"--out {str(self.out)!r}: a file; expected a folder")
+        identity = json.loads(json.dumps(spec.identity()))
+        record = self.out / self.RECORD
+        if record.is_file() and not restart:
+            before = self.read_record(self.out)
+            if before is None or before.get("identity") != identity:
+                what = "an unreadable sweep.json" if before is None else "a sweep of another spec"
+                raise ValueError(f"--out {str(self.out)!r} holds {what}; use --restart to replace it, or another --out")
+        if restart and self.out.is_dir():
+            for name in ("runs", "plots"):
+                shutil.rmtree(self.out / name, ignore_errors=True)
+            for old in self.out.glob("results.*"):
+                old.unlink()
+            for old in self.out.glob("summary.*"):
+                old.unlink()
+        self.runs_dir.mkdir(parents=True, exist_ok=True)
+        for stale in self.out.rglob(".tmp-*"):  # an interrupted write's leftovers
+            stale.unlink(missing_ok=True)
+        with atomic_write(self.out / "spec.yaml") as tmp:
+            tmp.write_text(spec.path.read_text())
+        self.write_json(self.RECORD, {"identity": identity, "spec": spec.data, "spec_file": str(spec.path),
+                                      "software": software_version()})
+
+    @staticmethod
+    def read_record(out: str | Path) -> dict | None:
+        """``out/sweep.json`` as data (None if missing or unreadable)."""
+        try:
+            return json.loads((Path(out) / SweepFolder.RECORD).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+
+    def finished(self) -> dict[str, dict]:
+        """The runs finished here: ``{key: row}`` of the readable rows with status ``ok``."""
+        return {k: r for k, r in read_rows(self.out).items() if r.get("status") == "ok"}
+
+    def save(self, key: str, row: dict) -> None:
+        """Write one run's row, atomically."""
+        with atomic_write(self.runs_dir / f"{key}.json") as tmp:
+            tmp.write_text(json.dumps(row, indent=1), encoding="utf-8")
+
+    def write_json(self, name: str, obj: Any) -> Path:
+        """``obj`` as JSON in ``out/name``, atomically."""
+        path = self.out / name
+        with atomic_write(path) as tmp:
+            tmp.write_text(json.dumps(obj, indent=2), encoding="utf-8")
+        return path
+
+
+def read_rows(out: str | Path) -> dict[str, dict]:
+    """Every readable run row in ``out/runs`` (ok and failed): ``{key: row}``, sorted by key."""
+    rows = {}
+    for path in sorted((Path(out) / "runs").glob("p*_s*.json")):
+        try:
+            row = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(row, dict) and "point" in row and "seed" in row:
+            rows[path.stem] = row
+    return rows
