@@ -10,8 +10,10 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
+# torch pinned first: 2.13.0 is the CPU build on disk, so the rllib extra's `torch>=2.1` is met (else pip fetches a multi-GB CUDA build)
 $(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet torch==2.13.0
+	$(BIN)/python -m pip install --quiet -e '.[test,ray,rllib]'
 	touch $(STAMP)
 
 # numba compiles the kernels for this machine on their first call: done here, once, on every
