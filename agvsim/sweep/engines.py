@@ -83,8 +83,9 @@ def run_ray(units: list[dict], workers: int, finished: Callable[[str, dict], Non
     env = {"env_vars": dict(WORKER_ENV)}
     try:
         if address is None:
-            info = ray.init(num_cpus=workers, include_dashboard=False, runtime_env=env, log_to_driver=False,
-                            configure_logging=False)
+            # ("local": a new instance even where a cluster started by `ray start` runs here)
+            info = ray.init(address="local", num_cpus=workers, include_dashboard=False, runtime_env=env,
+                            log_to_driver=False, configure_logging=False)
         else:
             info = ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
     except (ConnectionError, RuntimeError, ValueError) as exc:
