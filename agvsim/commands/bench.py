@@ -22,6 +22,7 @@ BENCHMARKS: dict[str, str] = {
     "filter-soak": "the pose filter under 10^6 odometry increments and hostile frames: P sane, no wrong relocalization",
     "envelope": "localizer accuracy and speed per camera condition (blur, defocus, motion, sRGB, vignetting, "
                 "JPEG, Bayer, noise, resolution) on independently rendered frames",
+    "sweep": "one drift study (30 rendered runs) on the local pool and on a local Ray, 1 and 2 workers",
 }
 
 

@@ -145,11 +145,12 @@ def _run(args, where: dict) -> int:
     engine: dict = {}
     warm_s = 0.0
     try:
-        if units and (workers > 1 or args.engine == "ray"):
-            warm_s = _warm(workers)
-        if units and args.engine == "ray":
-            engine = run_ray(units, workers, finished, bar.add, address=args.address)
+        if units and args.engine == "ray":  # (the warm-up while Ray starts)
+            engine = run_ray(units, workers, finished, bar.add, address=args.address,
+                             meanwhile=lambda: _warm(workers))
         elif units:
+            if workers > 1:
+                warm_s = _warm(workers)
             engine = run_local(units, workers, finished, bar.add)
     except KeyboardInterrupt:
         bar.close()

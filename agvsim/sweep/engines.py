@@ -66,26 +66,35 @@ class _Worker:
 
 
 def run_ray(units: list[dict], workers: int, finished: Callable[[str, dict], None],
-            progress: Callable[[float], None], address: str | None = None) -> dict:
+            progress: Callable[[float], None], address: str | None = None,
+            meanwhile: Callable[[], object] | None = None) -> dict:
     """Run ``units`` on ``workers`` Ray actors (module docstring); ``progress`` gets each run's
-    metres when it ends. Returns ``{"startup_s": seconds from ray.init to every actor ready,
-    "address": the cluster's address}``.
+    metres when it ends. ``meanwhile`` (e.g. the kernels' warm-up) runs in a thread while Ray
+    starts, and ends before the first run is sent. Returns ``{"startup_s": seconds from
+    ray.init to every actor ready (and ``meanwhile`` done), "address": the cluster's address}``.
 
     Raises:
         ValueError: Ray is not installed, or no cluster answers at ``address``.
     """
     if not ray_available():
         raise ValueError("--engine ray: Ray is not installed; install the extra: pip install 'agvsim[ray]'")
+    import concurrent.futures
+
     import ray
     from ray.util import ActorPool
 
     started = time.perf_counter()
+    side = concurrent.futures.ThreadPoolExecutor(max_workers=1)
+    pending = side.submit(meanwhile) if meanwhile is not None else None
+    side.shutdown(wait=False)
     env = {"env_vars": dict(WORKER_ENV)}
     try:
         if address is None:
             # ("local": a new instance even where a cluster started by `ray start` runs here)
+            # (workers at normal priority, as the local pool's: Ray's default niceness of 15 gives
+            # them a fraction of a core whenever anything else runs on the machine)
             info = ray.init(address="local", num_cpus=workers, include_dashboard=False, runtime_env=env,
-                            log_to_driver=False, configure_logging=False)
+                            log_to_driver=False, configure_logging=False, _system_config={"worker_niceness": 0})
         else:
             info = ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
     except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -94,6 +103,8 @@ def run_ray(units: list[dict], workers: int, finished: Callable[[str, dict], Non
         actor = ray.remote(num_cpus=1)(_Worker)
         actors = [actor.remote() for _ in range(max(1, min(workers, len(units))))]
         ray.get([a.ready.remote() for a in actors])
+        if pending is not None:
+            pending.result()
         startup = time.perf_counter() - started
         pool = ActorPool(actors)
         for key, row in pool.map_unordered(lambda a, u: a.run.remote(u), units):

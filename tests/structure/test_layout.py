@@ -25,6 +25,10 @@ LAYERS = {
     "sensors": {"world", "vehicle"},
     "loop": {"world", "vehicle", "sensors"},
     "analysis": {"world", "vehicle", "sensors", "loop"},
+    # deployment tools (the target layout planner, printable targets): read maps, predict the filter
+    "deploy": {"world", "vehicle", "sensors", "loop", "analysis"},
+    # a sweep is a command's work: it shares the commands' run folder, workers and flag parsers
+    "sweep": {"world", "vehicle", "sensors", "loop", "analysis", "commands"},
 }
 
 
