@@ -107,8 +107,8 @@ def plan_targets(model: RouteModel, candidates: list, keep: tuple = (), budget: 
     pool = [int(k) for k in seen if k >= n_keep]
     considered = len(pool)
     if not len(seen):
-        raise ValueError("the camera sees no target along the route from any place on the walls "
-                         "(check the route, the camera mount and the walls' surfaces)")
+        raise ValueError(f"route {model.route!r} of map {model.map.name!r}: the camera sees no place on the walls "
+                         "from anywhere along it (check the route, the camera mount, the walls' surfaces and --forbid)")
     positions = np.array([t.position for t in everything]).reshape(-1, 2)
     chosen = list(range(n_keep))
     sigma = _lap(model, sights.of(chosen))

@@ -72,6 +72,7 @@ class RouteModel:
     def __init__(self, world_map, route: str = "default", odometry: str = "typical",
                  vision: VisionConfig | None = None, camera_rate: float = 4.0) -> None:
         self.map = world_map
+        self.route = route
         self.vision = (vision or VisionConfig()).for_map(world_map)
         self.path = RoutePath.from_route(world_map, route)
         self.poses, self.s = _driven_lap(world_map, route, camera_rate)  # (N, 3), (N,)
