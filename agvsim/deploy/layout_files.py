@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agvsim.commands.run_folder import atomic_write
+from agvsim.files import atomic_write
 
 __all__ = ["draw_plan", "target_line", "write_map"]
 

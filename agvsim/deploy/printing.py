@@ -350,20 +350,16 @@ def write_pdf(pages: Sequence[Page], path: str | os.PathLike, title: str = "Two-
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
+    from agvsim.files import atomic_write
+
     path = Path(path)
-    part = path.with_name(path.name + ".part")
     rc = {"pdf.fonttype": 42, "font.family": FONT, "path.snap": False, "savefig.bbox": "standard",
           "savefig.pad_inches": 0.0, "text.usetex": False}
-    try:
-        with matplotlib.rc_context(rc):
-            with PdfPages(part, metadata={"Title": title, "Creator": "agvsim target print",
-                                          "CreationDate": None}) as pdf:
-                for page in pages:
-                    pdf.savefig(draw_page(page))
-        os.replace(part, path)
-    finally:
-        if part.exists():
-            part.unlink()
+    with atomic_write(path) as part, matplotlib.rc_context(rc):
+        with PdfPages(part, metadata={"Title": title, "Creator": "agvsim target print",
+                                      "CreationDate": None}) as pdf:
+            for page in pages:
+                pdf.savefig(draw_page(page))
     return path
 
 

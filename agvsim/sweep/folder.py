@@ -5,7 +5,7 @@
 * ``sweep.json``: what makes the sweep this sweep (base, points, seeds), the spec as read, the
   software's version; ``spec.yaml``: the spec file as given. Written first.
 * ``runs/pNNNN_sNNNN.json``: one run's row (:func:`agvsim.sweep.runs.run_unit`), written
-  atomically when it ends (:func:`agvsim.commands.run_folder.atomic_write`): a kill at any
+  atomically when it ends (:func:`agvsim.files.atomic_write`): a kill at any
   moment leaves no half-written file. A run whose row is there with status ``ok`` is finished
   and not run again; a failed run is run again by the next invocation.
 * the table, the summary and the plots (:mod:`agvsim.sweep.report`), written at the end and by
@@ -21,7 +21,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from agvsim.commands.run_folder import atomic_write
+from agvsim.files import atomic_write
 
 __all__ = ["SweepFolder", "read_rows", "software_version"]
 

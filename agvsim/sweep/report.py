@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from agvsim.commands.run_folder import atomic_write
+from agvsim.files import atomic_write
 
 __all__ = ["FORMATS", "PLOT_FIGURES", "SUMMARY_FIGURES", "write_report"]
 

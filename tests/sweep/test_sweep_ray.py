@@ -58,7 +58,8 @@ def test_local_pool_local_ray_and_a_ray_cluster_give_the_same_rows(tmp_path):
     # a loopback test cluster without Ray's token authentication (a client of a head started with
     # it must present the head's token; that is Ray's to set up, not the sweep's)
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "disabled"}
-    head = subprocess.Popen(["ray", "start", "--head", "--block", "--node-ip-address=127.0.0.1", f"--port={port}",
+    ray_cli = str(Path(sys.executable).with_name("ray"))  # (the venv's, on PATH or not)
+    head = subprocess.Popen([ray_cli, "start", "--head", "--block", "--node-ip-address=127.0.0.1", f"--port={port}",
                              "--num-cpus=2", "--include-dashboard=false", "--disable-usage-stats",
                              f"--temp-dir={temp}"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,

@@ -1,0 +1,35 @@
+"""Files written whole or not at all, for every layer of :mod:`agvsim`.
+
+:func:`atomic_write` yields a temporary name beside the file (the same suffix, so writers that
+go by it still work) and renames it over the file when the block ends without an error: a kill
+at any moment leaves the old file, the new one, or a temporary one (``.tmp-*``, which the run
+folders clean up), never a half-written file under the final name.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+__all__ = ["TMP_PREFIX", "atomic_write"]
+
+#: the prefix of the temporary names
+TMP_PREFIX = ".tmp-"
+
+
+@contextmanager
+def atomic_write(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (same suffix) to write; on success it is renamed
+    over ``path`` (atomic on POSIX within one file system); on an error it is removed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX + path.stem + "-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
