@@ -150,3 +150,26 @@ def edge_fraction(j, e, w, dw):
     if e - j > reach:
         return 0.0, 0.0, 0.0
     return blurred_step(j, e, w, dw)
+
+
+@inline
+def sampled_step(j, e, w, dw, kk, reach):
+    """:func:`edge_fraction` for sampled taps (``w.size == 2 kk + 1 > 1``) with the half-width
+    ``kk`` and the cut-off ``reach = kk + 1.5`` taken once per kernel call rather than per pixel:
+    the same arithmetic in the same order (bit for bit), without re-deriving them and the
+    closed-form test for every pixel (the photometric model's innermost loop: a fifth of its
+    time)."""
+    if j - e > reach:
+        return 1.0, 0.0, 0.0
+    if e - j > reach:
+        return 0.0, 0.0, 0.0
+    f = 0.0
+    ds = 0.0
+    de = 0.0
+    for k in range(-kk, kk + 1):
+        c = min(max(j - k + 0.5 - e, 0.0), 1.0)
+        f += w[k + kk] * c
+        ds += dw[k + kk] * c
+        if abs(j - k - e) < 0.5:
+            de -= w[k + kk]
+    return f, de, ds

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from localizer._jit import jit
-from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction
+from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction, sampled_step
 from localizer._kernels.projection import bar_edge_u, edge_x, edge_x_jacobian, plane, ray_inverse_range
 from localizer._kernels.records import ColumnModel, Refinement, Selection
 
@@ -112,6 +112,8 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
     closed = kw.size == 1
     sd = kw[0]
     reach = 4.5 * sd + 1.0
+    kk = (kw.size - 1) // 2  # sampled taps: edge_fraction's half-width and cut-off, once
+    taps_reach = kk + 1.5
     n = ucols.size
     fxb = np.empty(n)
     dfxb = np.empty((n, 5))
@@ -137,8 +139,8 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
             i_prev = i
             r_prev = r
         else:
-            ft, dte, dts = edge_fraction(r, ylin[i, 0], kw, kdw)
-            fb, dbe, dbs = edge_fraction(r, ylin[i, 1], kw, kdw)
+            ft, dte, dts = sampled_step(r, ylin[i, 0], kw, kdw, kk, taps_reach)
+            fb, dbe, dbs = sampled_step(r, ylin[i, 1], kw, kdw, kk, taps_reach)
         fy_ = ft - fb
         bars = fxb[i] * fy_
         bf = 1.0 - bars if positive else bars
