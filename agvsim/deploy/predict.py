@@ -9,7 +9,8 @@ every target the camera sees there (the same visibility test as the ``geometric`
 :func:`agvsim.sensors.vision.visible_targets`), with the measurement Jacobian of the filter
 (:func:`localizer.filter.measurement.measurement_jacobian`) and the localizer's covariance
 model (:class:`agvsim.sensors.geometric.GeometricNoise`, plus the filter's
-``measurement_floor``). The covariance does not depend on what is measured, only on where:
+``measurement_floor`` and the loop's inflation of frames taken while turning,
+``LoopConfig.turn_blur_noise``). The covariance does not depend on what is measured, only on where:
 so it can be predicted for thousands of placements at once (:func:`propagate`: a batch of
 covariances, one per placement tried, in the Joseph form of filterpy's update).
 
@@ -100,6 +101,12 @@ class RouteModel:
             Fi, Gi = compose_jacobians(a, acc.u)
             F[i], GQG[i] = Fi, Gi @ acc.Q @ Gi.T
         self.F, self.GQG = F, GQG
+        from agvsim.loop.closed_loop import LoopConfig
+
+        self.turn_blur_noise = LoopConfig().turn_blur_noise
+        # yaw rate at each frame (rad/s), central differences of the driven lap's headings
+        ahead, behind = np.roll(self.poses[:, 2], -1), np.roll(self.poses[:, 2], 1)
+        self.yaw_rate = wrap_angle(ahead - behind) * (0.5 * camera_rate)
 
     @property
     def frames(self) -> int:
@@ -112,12 +119,17 @@ class RouteModel:
         m = replace(self.map, targets=tuple(targets))
         tm = targets_from_map(m)
         mount = self.vision.mount
+        k_d, k_b, k_a = self.turn_blur_noise
         rows = []
         for i, pose in enumerate(self.poses):
+            w = abs(float(self.yaw_rate[i]))
             for k, tp in visible_targets(m, self.vision, pose, tm):
                 t = targets[k]
                 H = measurement_jacobian(pose, t.position, t.yaw, mount)
-                R = self.noise_model.covariance(tp.distance) + self._floor
+                # the localizer's covariance, the filter's floor and the loop's inflation of a
+                # frame taken while turning (LoopConfig.turn_blur_noise: with_turn_blur)
+                blur = np.array([k_d * w * tp.distance, k_b * w, k_a * w])
+                R = self.noise_model.covariance(tp.distance) + self._floor + np.diag(blur ** 2)
                 rows.append((i, k, H, R, tp.distance))
         if not rows:
             e = np.zeros((0, 3, 3))
