@@ -135,13 +135,15 @@ def write_debug_images(directory: str, image: np.ndarray, camera, p, stacks, ver
     red, verified in green) and ``result.png`` into ``directory``."""
     import cv2
 
+    from localizer._kernels.noise import frame_noise
     from localizer.scan import threshold_lines
 
     os.makedirs(directory, exist_ok=True)
     rows = np.arange(0, image.shape[0], int(p.coarse_step))
     lines = image[rows]
     binary = np.full(image.shape, 128, np.uint8)
-    binary[rows] = np.where(threshold_lines(lines, p, int(p.threshold_window)), 255, 0)
+    noise = frame_noise(np.ascontiguousarray(image), int(p.coarse_step))
+    binary[rows] = np.where(threshold_lines(lines, p, int(p.threshold_window), noise), 255, 0)
     cv2.imwrite(os.path.join(directory, "coarse.png"), binary)
     vis = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
     for group, colour in ((stacks, (0, 0, 255)), (verified, (0, 255, 0))):

@@ -73,7 +73,9 @@ class DetectorParams:
     # --- thresholding (§4.4.2)
     threshold_window: int | None = None  # px, local midway-threshold window; 33 at 512 columns
     global_threshold: float = 128.0  # grey level used when a line has little contrast
-    local_contrast: float = 30.0  # grey levels within `contrast_window` px that switch to midway threshold
+    # grey levels within `contrast_window` px that switch to midway threshold; on a noisy frame at
+    # least what its noise reaches in a threshold window (localizer.scan.noise_contrast)
+    local_contrast: float = 30.0
     contrast_window: int = 5  # px, thesis "area of five pixels"
     # --- feature detection (§4.5.1)
     min_bar_px: int = 3  # px, shortest run accepted as a bar or gap

@@ -32,7 +32,7 @@ from localizer._kernels import search
 from localizer._kernels.records import REASONS, SearchSettings, as_record
 from localizer.camera import Camera
 from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import run_test
+from localizer.scan import noise_contrast, run_test
 from localizer.target import TargetSpec
 
 
@@ -130,7 +130,8 @@ def search_settings(p: DetectorParams, fx: float, fy: float, bar_width: float, b
     ratio = bar_height / (3.0 * bar_width) * fy / fx  # rows / columns of a target facing the camera
     return as_record(SearchSettings(
         step=int(p.coarse_step), window=int(p.threshold_window), contrast_window=int(p.contrast_window),
-        local_contrast=float(p.local_contrast), global_level=min(255, int(math.ceil(p.global_threshold))),
+        local_contrast=float(p.local_contrast), noise_contrast=noise_contrast(int(p.threshold_window)),
+        global_level=min(255, int(math.ceil(p.global_threshold))),
         **run_test(p)._asdict(), min_contrast=float(p.min_contrast), min_contrast_ratio=float(p.min_contrast_ratio),
         min_rows=int(p.min_rows), max_row_gap=int(p.max_row_gap), aspect_lo=ratio * (1.0 - p.aspect_tolerance),
         aspect_hi=ratio / math.cos(p.max_alpha) * (1.0 + p.aspect_tolerance), uniformity=float(p.uniformity),

@@ -74,7 +74,8 @@ class SearchSettings(NamedTuple):
     step: int  # rows between coarse scan lines (thesis N)
     window: int  # px, local midway-threshold window
     contrast_window: int  # px, thesis "area of five pixels"
-    local_contrast: float  # grey levels that switch a line to the midway threshold
+    local_contrast: float  # grey levels that switch a line to the midway threshold (at least)
+    noise_contrast: float  # or this many times the frame's noise sd, if more (localizer.scan.noise_contrast)
     global_level: int  # grey level of the global threshold (<= 255)
     # the §4.5.1 run test (the fields of RunTest)
     min_bar_px: int

@@ -9,6 +9,7 @@ from localizer._jit import jit
 from localizer._kernels.fine import fine_stack
 from localizer._kernels.records import CANDIDATE, SEARCH_COUNTS, Reject, RunTest, SearchResult
 from localizer._kernels.arrays import copy, copy_rows
+from localizer._kernels.noise import frame_noise
 from localizer._kernels.scan import levels, line_extrema, rle, threshold, triples
 from localizer._kernels.verify import verify
 
@@ -23,7 +24,9 @@ def recognize(image, settings):
             :class:`~localizer._kernels.records.SearchSettings` of the frame.
 
     The coarse scan lines are every ``s.step``-th image row, thresholded over ``s.window``
-    px (:func:`localizer.scan.threshold_lines`). In order: threshold, code and search the
+    px (:func:`localizer.scan.threshold_lines`; the contrast that switches a pixel to the
+    midway threshold is ``local_contrast`` or, on a noisy frame, ``noise_contrast`` times the
+    frame's noise sd, :func:`localizer._kernels.noise.frame_noise`). In order: threshold, code and search the
     lines (:func:`localizer._kernels.scan.threshold`, ``rle``, ``triples``), grey levels and
     cheap tests of every triple (:func:`coarse_seeds`), then per plausible hit,
     best-shaped triples first (where a margin, a bar and the gap pose as a triple of the
@@ -54,7 +57,10 @@ def recognize(image, settings):
     c.rows_scanned = lines.shape[0]
     rows_out = np.empty(64, np.int64)
     x_out = np.empty((64, 4), np.int64)
-    binary = threshold(lines, hi, lo, s.contrast_window, s.local_contrast, s.global_level)
+    # the contrast that switches to the midway threshold: at least what the frame's own noise
+    # reaches within a threshold window (localizer.scan.noise_contrast)
+    contrast = max(s.local_contrast, s.noise_contrast * frame_noise(image, step))
+    binary = threshold(lines, hi, lo, s.contrast_window, contrast, s.global_level)
     g, ln, line, xr = rle(binary)
     c.runs = ln.size
     if ln.size < 5:
