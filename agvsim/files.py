@@ -7,13 +7,14 @@ folders clean up), never a half-written file under the final name.
 """
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
-__all__ = ["TMP_PREFIX", "atomic_write"]
+__all__ = ["TMP_PREFIX", "atomic_write", "write_json"]
 
 #: the prefix of the temporary names
 TMP_PREFIX = ".tmp-"
@@ -33,3 +34,11 @@ def atomic_write(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_json(path: str | os.PathLike, obj: Any, indent: int = 2) -> Path:
+    """``obj`` as JSON (UTF-8) at ``path``, atomically (:func:`atomic_write`); returns the path."""
+    path = Path(path)
+    with atomic_write(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=indent), encoding="utf-8")
+    return path

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from agvsim.files import TMP_PREFIX as _TMP_PREFIX, atomic_write
+from agvsim.files import TMP_PREFIX as _TMP_PREFIX, atomic_write, write_json
 
 __all__ = ["RunFolder", "atomic_write"]
 
@@ -93,12 +93,8 @@ class RunFolder:
         meta, npz = self._paths(seed)
         with atomic_write(npz) as tmp:
             np.savez_compressed(tmp, **arrays)
-        with atomic_write(meta) as tmp:
-            tmp.write_text(json.dumps(metrics, indent=1), encoding="utf-8")
+        write_json(meta, metrics, indent=1)
 
     def write_json(self, name: str, obj: Any) -> Path:
         """``obj`` as JSON in ``out/name``, atomically."""
-        path = self.out / name
-        with atomic_write(path) as tmp:
-            tmp.write_text(json.dumps(obj, indent=2), encoding="utf-8")
-        return path
+        return write_json(self.out / name, obj)

@@ -21,7 +21,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from agvsim.files import atomic_write
+from agvsim.files import atomic_write, write_json
 
 __all__ = ["SweepFolder", "read_rows", "software_version"]
 
@@ -97,15 +97,11 @@ class SweepFolder:
 
     def save(self, key: str, row: dict) -> None:
         """Write one run's row, atomically."""
-        with atomic_write(self.runs_dir / f"{key}.json") as tmp:
-            tmp.write_text(json.dumps(row, indent=1), encoding="utf-8")
+        write_json(self.runs_dir / f"{key}.json", row, indent=1)
 
     def write_json(self, name: str, obj: Any) -> Path:
         """``obj`` as JSON in ``out/name``, atomically."""
-        path = self.out / name
-        with atomic_write(path) as tmp:
-            tmp.write_text(json.dumps(obj, indent=2), encoding="utf-8")
-        return path
+        return write_json(self.out / name, obj)
 
 
 def read_rows(out: str | Path) -> dict[str, dict]:
