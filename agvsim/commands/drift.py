@@ -27,7 +27,7 @@ from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route,
 from localizer.numeric import check_number
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log, plural
 from agvsim.commands.run_folder import RunFolder, atomic_write
-from agvsim.commands.workers import run_units
+from agvsim.commands.workers import MetreReporter, run_units
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
 
@@ -86,18 +86,9 @@ def _job(args: dict):
     """One seed in a worker process: returns (seed, MissionLog). Renderer created lazily in the worker."""
     from agvsim.loop.drive import drive_seed
 
-    queue = args.get("queue")
-    last = [0.0]
-
-    def progress(s: float) -> None:
-        if queue is not None and s - last[0] >= 5.0:
-            step = int(s - last[0])
-            queue.put(step)
-            last[0] += step
-
-    run_log = drive_seed(settings_of(args), args["seed"], progress)
-    if queue is not None:
-        queue.put(max(int(round(args["distance"] - last[0])), 0))
+    progress = MetreReporter(args.get("queue"))
+    run_log = drive_seed(settings_of(args), args["seed"], progress.to)
+    progress.finish(args["distance"])
     return args["seed"], run_log
 
 

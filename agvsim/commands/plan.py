@@ -18,6 +18,7 @@ from pathlib import Path
 
 from agvsim.commands._args import check_route, number
 from agvsim.commands._output import add_json_flag, doc_help, emit_json, log, plural
+from agvsim.files import write_json
 from agvsim.vehicle.encoders import PRESETS
 
 __all__ = ["register", "run"]
@@ -96,11 +97,7 @@ def run(args) -> int:
             "(the map written has that layout)")
     if args.verify:
         report["verify"] = _verify(args, plan)
-    from agvsim.commands.run_folder import atomic_write
-    import json
-
-    with atomic_write(report_path) as tmp:
-        tmp.write_text(json.dumps(report, indent=2), encoding="utf-8")
+    write_json(report_path, report)
     report["report"] = str(report_path)
     if args.json:
         emit_json(report)

@@ -22,7 +22,7 @@ import signal
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
-__all__ = ["run_units", "sigint_blocked", "worker_init"]
+__all__ = ["MetreReporter", "run_units", "sigint_blocked", "worker_init"]
 
 _QUEUE = None  # a worker's progress queue (set by worker_init)
 
@@ -77,6 +77,24 @@ def sigint_blocked() -> Iterator[None]:
         signal.signal(signal.SIGINT, handler)
     if caught:
         signal.raise_signal(signal.SIGINT)  # as it would have been: KeyboardInterrupt
+
+
+class MetreReporter:
+    """A run's progress in whole metres to its ``queue`` (``args["queue"]`` of a job; None: silent):
+    :meth:`to` every ``every`` metres driven, :meth:`finish` the rest of ``total`` metres."""
+
+    def __init__(self, queue, every: float = 5.0) -> None:
+        self.queue, self.every, self.reported = queue, every, 0.0
+
+    def to(self, metres: float) -> None:
+        if self.queue is not None and metres - self.reported >= self.every:
+            step = int(metres - self.reported)
+            self.queue.put(step)
+            self.reported += step
+
+    def finish(self, total: float) -> None:
+        if self.queue is not None:
+            self.queue.put(max(int(round(total - self.reported)), 0))
 
 
 class _Progress:

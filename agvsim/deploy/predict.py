@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agvsim.loop.closed_loop import filter_config_for, odometry_noise_for
+from agvsim.loop.closed_loop import LoopConfig, filter_config_for, odometry_noise_for
 from agvsim.loop.pure_pursuit import RoutePath
 from agvsim.sensors.geometric import GeometricNoise
 from agvsim.sensors.vision import VisionConfig, targets_from_map, visible_targets
@@ -101,8 +101,6 @@ class RouteModel:
             Fi, Gi = compose_jacobians(a, acc.u)
             F[i], GQG[i] = Fi, Gi @ acc.Q @ Gi.T
         self.F, self.GQG = F, GQG
-        from agvsim.loop.closed_loop import LoopConfig
-
         self.turn_blur_noise = LoopConfig().turn_blur_noise
         # yaw rate at each frame (rad/s), central differences of the driven lap's headings
         ahead, behind = np.roll(self.poses[:, 2], -1), np.roll(self.poses[:, 2], 1)
@@ -196,23 +194,15 @@ def propagate(model: RouteModel, P0: np.ndarray, common: Sightings, each: Sighti
         if e_starts is not None and e_starts[i + 1] > e_starts[i]:
             sl = slice(e_starts[i], e_starts[i + 1])
             members = batch_of[each.target[sl]]
-            # a member seen twice in one frame (two of its targets) is updated one sighting at a time
+            # a member seen twice in one frame (two of its targets) takes one sighting per pass:
+            # pass r updates every member's r-th sighting of the frame
             order = np.argsort(members, kind="stable")
             members, Hs, Rs = members[order], each.H[sl][order], each.R[sl][order]
-            first = np.ones(len(members), bool)
-            first[1:] = members[1:] != members[:-1]
-            done = np.zeros(len(members), bool)
-            while not done.all():
-                pick = first & ~done
+            starts = np.r_[0, np.flatnonzero(members[1:] != members[:-1]) + 1]
+            rank = np.arange(len(members)) - np.repeat(starts, np.diff(np.r_[starts, len(members)]))
+            for r in range(int(rank.max()) + 1):
+                pick = rank == r
                 P[members[pick]] = joseph(P[members[pick]], Hs[pick], Rs[pick])
-                done |= pick
-                first = np.zeros(len(members), bool)
-                rest = np.nonzero(~done)[0]
-                if len(rest):
-                    mm = members[rest]
-                    f = np.ones(len(rest), bool)
-                    f[1:] = mm[1:] != mm[:-1]
-                    first[rest[f]] = True
         sigma[:, i] = position_sigmas(P)
     return P, sigma
 
@@ -220,8 +210,6 @@ def propagate(model: RouteModel, P0: np.ndarray, common: Sightings, each: Sighti
 def steady_start(model: RouteModel, common: Sightings, laps: int = 3) -> np.ndarray:
     """``(3, 3)``: the covariance at the lap's start once laps repeat (a loop route), else the
     filter's initial covariance."""
-    from agvsim.loop.closed_loop import LoopConfig
-
     P = np.diag(np.asarray(LoopConfig().initial_sigma, dtype=float) ** 2)[None]
     if not model.path.loop:
         return P[0]

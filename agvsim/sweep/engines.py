@@ -107,9 +107,10 @@ def run_ray(units: list[dict], workers: int, finished: Callable[[str, dict], Non
             pending.result()
         startup = time.perf_counter() - started
         pool = ActorPool(actors)
+        metres = {u["key"]: u["settings"].distance for u in units}
         for key, row in pool.map_unordered(lambda a, u: a.run.remote(u), units):
             finished(key, row)
-            progress(next(u["settings"].distance for u in units if u["key"] == key))
+            progress(metres[key])
         return {"startup_s": startup, "address": getattr(info, "address_info", {}).get("address")}
     finally:
         ray.shutdown()

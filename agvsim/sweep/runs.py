@@ -12,12 +12,12 @@ import math
 import time
 from typing import Any
 
+from agvsim.commands.workers import MetreReporter
+
 __all__ = ["TIMING_COLUMNS", "run_unit", "unit_key", "units_of"]
 
 #: columns that measure the machine, not the drive: left out when two engines' rows are compared
 TIMING_COLUMNS: tuple[str, ...] = ("observe_ms_median", "filter_ms_median", "wall_time_s", "run_wall_s")
-#: metres between progress reports of a run
-PROGRESS_EVERY_M = 5.0
 
 
 def unit_key(point: int, seed: int) -> str:
@@ -50,23 +50,14 @@ def run_unit(unit: dict) -> tuple[str, dict]:
     from agvsim.analysis.evaluate import run_metrics
     from agvsim.loop.drive import drive_seed
 
-    queue = unit.get("queue")
-    reported = [0.0]
-
-    def progress(metres: float) -> None:
-        if queue is not None and metres - reported[0] >= PROGRESS_EVERY_M:
-            step = int(metres - reported[0])
-            queue.put(step)
-            reported[0] += step
-
+    progress = MetreReporter(unit.get("queue"))
     started = time.perf_counter()
     row: dict[str, Any] = {"point": unit["point"], "seed": unit["seed"], **unit["values"]}
     try:
-        figures = run_metrics(drive_seed(unit["settings"], unit["seed"], progress))
+        figures = run_metrics(drive_seed(unit["settings"], unit["seed"], progress.to))
         row.update(status="ok", error="", **{k: v for k, v in figures.items() if _scalar(v)})
     except Exception as exc:  # noqa: BLE001 - a failed run is recorded and the sweep goes on
         row.update(status="failed", error=f"{type(exc).__name__}: {exc}")
     row["run_wall_s"] = time.perf_counter() - started
-    if queue is not None:
-        queue.put(max(int(round(unit["settings"].distance - reported[0])), 0))
+    progress.finish(unit["settings"].distance)
     return unit["key"], {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}

@@ -137,3 +137,25 @@ class _nothing:
 
     def __exit__(self, *exc):
         return False
+
+
+def test_a_batch_is_each_member_on_its_own(corridor):
+    m, model = corridor
+    cands = candidate_targets(m, height=model.vision.mount.height, step=1.0)
+    sights = model.sightings(cands)
+    counts = np.bincount(sights.frame * len(cands) + sights.target)
+    assert counts.max() == 1  # (one sighting of a target per frame)
+    seen = np.unique(sights.target)[:40]
+    assert np.bincount(sights.of(seen).frame).max() > 1  # frames where several members are seen at once
+    common = model.sightings(list(m.targets)[:3])
+    P0 = np.repeat(steady_start(model, common)[None], len(seen), axis=0)
+    batch_of = np.full(len(cands), -1)
+    batch_of[seen] = np.arange(len(seen))
+    _, batch = propagate(model, P0, common, sights.of(seen), batch_of)
+    for j in (0, len(seen) // 2, len(seen) - 1):
+        both = sights.of([seen[j]])
+        merged = type(both)(*(np.concatenate([getattr(common, f), getattr(both, f)])[np.argsort(
+            np.concatenate([common.frame, both.frame]), kind="stable")]
+            for f in ("frame", "target", "H", "R", "distance")))
+        _, alone = propagate(model, P0[:1], merged)
+        np.testing.assert_allclose(batch[j], alone[0], rtol=1e-9)
