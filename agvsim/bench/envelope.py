@@ -12,7 +12,11 @@ Per condition (:mod:`agvsim.bench.envelope_conditions`): the target found (a det
 of d (% of d), beta and alpha (deg; alpha over targets whose shorter bar is >= 60 rows tall
 at 512 x 480, scaled with fy), the share of errors within 3 sigma of the reported covariance (per axis and
 in 3-D against chi-square 3), and ms per ``detect_targets`` call (``time.perf_counter``, one
-call per frame after an untimed warm-up call). Plus false detections on target-free frames
+call per frame right after the frame is made, after an untimed warm-up call per condition;
+``--repeats R``: the median of R calls in turn with the peers). ``--peers``: an ArUco and an
+AprilTag marker hang beside each target (:func:`agvsim.bench.envelope_frames.marker_layout`)
+and ArUco+solvePnP and AprilTag 3 (:mod:`agvsim.bench.peers`) are timed on the same frames,
+in turn with the localizer. Plus false detections on target-free frames
 (the same pipeline, clutter only) at every resolution run. Every condition of a resolution
 sees the same scenes (frame ``i``'s wall, clutter and pose); a subset of conditions gives
 the same frames as the whole run, so ``--conditions blur2 --frames 5`` reproduces
@@ -47,6 +51,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"comma-separated conditions or all (default all): {', '.join(NAMES)}")
     p.add_argument("--seed", type=number(0, integer=True), default=0, help="run seed (default 0)")
     p.add_argument("--method", choices=("exact", "thesis"), default="exact", help="localizer method (default exact)")
+    p.add_argument("--peers", action="store_true",
+                   help="hang an ArUco and an AprilTag marker beside each target and time ArUco+solvePnP and "
+                        "AprilTag 3 on the same frames, in turn with the localizer (the frames then differ from "
+                        "a run without --peers by the markers)")
+    p.add_argument("--repeats", type=number(1, integer=True), default=1,
+                   help="calls per frame and contender, in turn, timed by their median (default 1: one call "
+                        "right after the frame is made, as the floors are measured; more gives the time in a "
+                        "loop that only detects)")
     p.add_argument("--save-frames", type=str, default=None, metavar="DIR",
                    help="write every frame (PNG) with its truth and detections (JSON) under DIR/<condition>/")
 
@@ -65,6 +77,13 @@ class _Tally:
         self.missed, self.false_frames = [], []
         self.err = []  # (d %, beta deg, alpha deg, rows, z_d, z_beta, z_alpha, mahalanobis^2, frame)
         self.ms = []
+        self.peer_ms: dict[str, list] = {}  # peer -> ms per frame (``--peers``)
+        self.peer_found: dict[str, int] = {}  # peer -> frames where it found a marker
+
+    def add_peer(self, name: str, found: bool, seconds: float) -> None:
+        """A peer's call on the frame just added: whether it found its marker, its ``seconds``."""
+        self.peer_ms.setdefault(name, []).append(1000.0 * seconds)
+        self.peer_found[name] = self.peer_found.get(name, 0) + bool(found)
 
     def add(self, index: int, pose, obs, seconds: float) -> None:
         """Frame ``index``: the truth ``pose``, the detections ``obs`` and the call's ``seconds``."""
@@ -126,6 +145,10 @@ class _Tally:
             "ms_p99": float(np.percentile(self.ms, 99)) if self.ms else None,
             "ms_max": float(np.max(self.ms)) if self.ms else None,
         })
+        ours = out["ms_median"]
+        out["peers"] = {k: {"ms_median": float(np.median(v)), "found": self.peer_found[k],
+                            "times_slower": float(np.median(v)) / ours if ours else None}
+                        for k, v in self.peer_ms.items()}
         out["within_3sigma_pct"]["mahalanobis_3d"] = _pct(float((a[:, 7] <= CHI2_3D_3SIGMA).mean())) if have else None
         w = [v for v in out["within_3sigma_pct"].values() if v is not None]
         out["within_3sigma_pct_worst"] = min(w) if len(w) == 4 else None
@@ -144,15 +167,33 @@ def _floors(r: dict, size: tuple[int, int]) -> dict:
               "d_error_pct_max": r["d_error_pct_max"], "alpha_error_deg_mean": r["alpha_error_deg_mean"],
               "alpha_error_deg_max": r["alpha_error_deg_max"], "within_3sigma_pct": r["within_3sigma_pct_worst"],
               "false_detections": r["false_detections"], "ms_median": r["ms_median"], "ms_p99": r["ms_p99"],
-              "ms_median_2448": r["ms_median"]}
+              "ms_median_2448": r["ms_median"],
+              "peer_ratio": min((p["times_slower"] for p in r["peers"].values()), default=None)}
     out = {}
     for key, (op, limit, unit, _) in FLOORS.items():
         if key in SPEED_SIZE and SPEED_SIZE[key] != size:
             continue
+        if key == "peer_ratio" and not r["peers"]:
+            continue  # peers not run
         if key.startswith("alpha") and r["found"] and not r["alpha_frames"]:
             continue  # targets found, none of them tall enough for the alpha floors
         out[key] = verdict(values[key], op, limit, unit)
     return out
+
+
+def in_turn(contenders: dict, image: np.ndarray, repeats: int) -> dict:
+    """Each contender (name -> ``fn(image)``) called ``repeats`` times in turn on ``image``
+    (A, B, C, A, B, C, ...: a slow spell of the machine hits them alike; after the first
+    round each call finds the caches as the others left them). name -> (the first call's
+    result, the median of its calls' seconds)."""
+    first, seconds = {}, {k: [] for k in contenders}
+    for _ in range(repeats):
+        for k, fn in contenders.items():
+            t0 = time.perf_counter()
+            out = fn(image)
+            seconds[k].append(time.perf_counter() - t0)
+            first.setdefault(k, out)
+    return {k: (first[k], float(np.median(seconds[k]))) for k in contenders}
 
 
 def _save(folder, name: str, index: int, frame, obs) -> None:
@@ -173,9 +214,22 @@ def _progress(text: str) -> None:
 
 
 def run(args) -> dict:
+    """The benchmark's JSON-ready result (one thread for OpenCV while it runs, as for every contender)."""
+    import cv2
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one thread for every contender (OpenCV would spread ArUco over the cores)
+    try:
+        return _run(args)
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def _run(args) -> dict:
     from localizer import detect_targets
 
-    from agvsim.bench.envelope_frames import expose_frame, render_scene
+    from agvsim.bench.envelope_frames import MARKER_SIDE, camera_for, expose_frame, render_scene
+    from agvsim.bench.peers import APRILTAG_INSTALL, peer_detectors
 
     conditions = parse_conditions(args.conditions)
     sizes: dict[tuple[int, int], list] = {}
@@ -183,22 +237,27 @@ def run(args) -> dict:
         sizes.setdefault((c.settings.width, c.settings.height), []).append(c)
     t_start = time.perf_counter()
     result: dict = {"method": args.method, "seed": args.seed, "conditions": [], "target_free": {}}
+    if args.peers and "apriltag" not in peer_detectors(camera_for(512, 480)):
+        result["missing_peers"] = {"apriltag": APRILTAG_INSTALL}
     reports = {}
     for (w, h), conds in sizes.items():
         n = args.frames if (w, h) == (512, 480) else args.hires_frames
         tallies = {}
+        peers = peer_detectors(camera_for(w, h), MARKER_SIDE) if args.peers else {}
         for i in range(n):
-            rendered = render_scene(w, h, args.seed, i)
+            rendered = render_scene(w, h, args.seed, i, markers=args.peers)
             for c in conds:
                 frame = expose_frame(c.settings, rendered)
                 tally = tallies.get(c.name)
                 if tally is None:  # the warm-up call (kernel load, first-size caches): not timed
                     tally = tallies[c.name] = _Tally(c, frame.camera)
                     detect_targets(frame.image, frame.camera, method=args.method)
-                t0 = time.perf_counter()
-                obs = detect_targets(frame.image, frame.camera, method=args.method)
-                dt = time.perf_counter() - t0
+                timed = in_turn({"localizer": lambda im, cam=frame.camera: detect_targets(im, cam, method=args.method),
+                                 **peers}, frame.image, args.repeats)
+                obs, dt = timed.pop("localizer")
                 tally.add(i, rendered.scene.pose, obs, dt)
+                for name, (found, dt) in timed.items():
+                    tally.add_peer(name, len(found) > 0, dt)
                 if args.save_frames:
                     _save(args.save_frames, c.name, i, frame, obs)
             if (i + 1) % max(1, n // 5) == 0:
@@ -271,6 +330,15 @@ def format_table(r: dict) -> str:
             f"{_f(w3['d'], '.0f'):>4}/{_f(w3['beta'], '.0f'):>3}/{_f(w3['alpha'], '.0f'):>3}/"
             f"{_f(w3['mahalanobis_3d'], '.0f'):>3}  "
             f"{_f(c['ms_median']):>5}/{_f(c['ms_p99'])}")
+    if any(c["peers"] for c in r["conditions"]):
+        lines.append("peers on the same frames, in turn with the localizer (median ms, frames with their marker "
+                     "found, times the localizer's median):")
+        for c in r["conditions"]:
+            lines.append(f"  {c['name']:<12} " + "   ".join(
+                f"{k} {p['ms_median']:.2f} ms, {p['found']}/{c['frames']}, {_f(p['times_slower'], '.1f')}x"
+                for k, p in c["peers"].items()))
+    for name, how in r.get("missing_peers", {}).items():
+        lines.append(f"  {name} not timed: {how}")
     for c in r["conditions"]:
         if c["missed_frames"] or c["false_frames"]:
             lines.append(f"  {c['name']}: missed frames {c['missed_frames'] or '-'}, frames with a false detection "

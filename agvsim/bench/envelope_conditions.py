@@ -71,6 +71,8 @@ FLOORS: dict[str, tuple[str, float, str, str]] = {
     "ms_median": ("<=", 0.5, "ms", "median ms per 512x480 frame"),
     "ms_p99": ("<=", 3.0, "ms", "p99 ms per 512x480 frame"),
     "ms_median_2448": ("<=", 2.0, "ms", "median ms per 2448x2048 frame"),
+    "peer_ratio": (">=", 10.0, "x", "times faster than ArUco+solvePnP and AprilTag 3 on the same frames (medians; "
+                                    "--peers)"),
 }
 #: the speed floors apply to conditions of this size (width, height)
 SPEED_SIZE = {"ms_median": (512, 480), "ms_p99": (512, 480), "ms_median_2448": (2448, 2048)}

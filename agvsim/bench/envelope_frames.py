@@ -46,6 +46,9 @@ FRAME_MARGIN_PX = 4.0
 WALL_TEXELS_PER_PX, WALL_TEXELS_MAX = 2, 4096
 #: output rows per band of the wall's fine render (bounds its memory)
 BAND_ROWS = 128
+#: the peers' printed markers (``--peers``): black square side (m), white quiet zone (share of
+#: the side), gap from the target's print (m)
+MARKER_SIDE, MARKER_QUIET, MARKER_GAP = 0.12, 0.2, 0.06
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,7 @@ class Scene:
     light: tuple[float, float, float]  # illumination: slopes across the frame in x and y (share per frame
     # width / height) and the sd of its smooth unevenness (share)
     far: tuple[float, float]  # reflectance of the far room at the top and the bottom of the frame
+    markers: tuple = ()  # (name, u0, v0, side) printed peer markers (:func:`marker_layout`), m; drawn over the clutter
 
 
 def camera_for(width: int, height: int) -> Camera:
@@ -161,6 +165,21 @@ def sample_scene(rng: np.random.Generator, camera: Camera, target: TargetSpec = 
     light = (float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-0.15, 0.15)), 0.03)
     far = (float(rng.uniform(0.05, 0.6)), float(rng.uniform(0.05, 0.6)))
     return Scene(pose, with_target, polarity, wall, float(paint), tuple(items), light, far)
+
+
+def marker_layout(pose: TargetPose, camera: Camera, target: TargetSpec = TargetSpec()) -> tuple:
+    """Where a wall beside the target holds the peers' markers (:mod:`agvsim.bench.peers`):
+    one above the other, ``MARKER_GAP`` beside the print on the side of the frame's centre (no
+    random draw: the rest of the scene is unchanged). Returns ``((name, u0, v0, side), ...)``,
+    each marker's black square from ``(u0, v0)`` (m, wall coordinates), ``side`` m across."""
+    from agvsim.bench.peers import MARKER_NAMES
+
+    x = camera.project(pose.points(np.zeros(1), np.zeros(1)))[0, 0]
+    q = MARKER_QUIET * MARKER_SIDE
+    u = 0.5 * target.outer_width + MARKER_GAP + q
+    u0 = u if x < camera.cx else -u - MARKER_SIDE
+    v0s = (-MARKER_SIDE - q, q)  # above and below the centre row
+    return tuple((name, u0, v0, MARKER_SIDE) for name, v0 in zip(MARKER_NAMES, v0s))
 
 
 # ------------------------------------------------------------------ textures and homographies
@@ -268,10 +287,36 @@ def wall_texture(scene: Scene, camera: Camera, rng: np.random.Generator):
             cv2.polylines(img, [poly], True, grey, max(1, int(round(0.02 / t))), cv2.LINE_AA, sh)
         else:
             cv2.fillConvexPoly(img, poly, grey, cv2.LINE_AA, sh)
+    if scene.markers:
+        _draw_markers(img, scene.markers, u0, v0, t)
     tex = np.empty((nv, nu, 2), np.uint16)  # reflectance x 65535, coverage x 65535
     np.multiply(img, np.uint16(257), out=tex[..., 0], dtype=np.uint16)
     tex[..., 1] = 65535
     return tex, _texel_map(u0, v0, t, t)
+
+
+def _draw_markers(img: np.ndarray, markers: tuple, u0: float, v0: float, t: float) -> None:
+    """Print ``markers`` (:func:`marker_layout`) with their white quiet zones into the wall
+    texture ``img`` (uint8 reflectance x 255, texels ``t`` m from ``(u0, v0)``), area-resampled."""
+    import cv2
+
+    from agvsim.bench.peers import marker_images
+
+    images = marker_images()
+    lo, hi = int(round(255 * BLACK)), int(round(255 * WHITE))
+    for name, a0, b0, side in markers:
+        m = np.where(images[name] > 127, hi, lo).astype(np.uint8)
+        pad = int(round(MARKER_QUIET * m.shape[0]))
+        m = cv2.copyMakeBorder(m, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=hi)
+        q = MARKER_QUIET * side
+        c0, r0 = int(round((a0 - q - u0) / t)), int(round((b0 - q - v0) / t))
+        n = int(round((side + 2 * q) / t))
+        if n < 4:
+            continue
+        tile = cv2.resize(m, (n, n), interpolation=cv2.INTER_AREA)
+        ra, rb, ca, cb = max(r0, 0), min(r0 + n, img.shape[0]), max(c0, 0), min(c0 + n, img.shape[1])
+        if ra < rb and ca < cb:
+            img[ra:rb, ca:cb] = tile[ra - r0:rb - r0, ca - c0:cb - c0]
 
 
 def _warp(tex: np.ndarray, h: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -348,12 +393,17 @@ class Radiance:
 
 
 def render_scene(width: int, height: int, seed: int, index: int, target: TargetSpec = TargetSpec(),
-                 with_target: bool = True) -> Radiance:
+                 with_target: bool = True, markers: bool = False) -> Radiance:
     """Scene ``index`` of run ``seed`` rendered for a ``width x height`` camera (:func:`camera_for`):
-    every condition of that resolution shares it."""
+    every condition of that resolution shares it. ``markers``: the peers' markers hang beside the
+    target (:func:`marker_layout`; the same scene otherwise)."""
+    import dataclasses
+
     camera = camera_for(width, height)
     rng = scene_rng(seed, index, with_target)
     scene = sample_scene(rng, camera, target, with_target)
+    if markers and with_target:
+        scene = dataclasses.replace(scene, markers=marker_layout(scene.pose, camera, target))
     return Radiance(camera, scene, render_radiance(scene, camera, target, rng), (int(seed), int(index),
                                                                                  int(with_target)))
 

@@ -24,32 +24,16 @@ import time
 
 from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
+from agvsim.bench.peers import APRILTAG_INSTALL, marker_images, peer_detectors
 
 #: the floor on a blank frame (nothing to find), ms per call of the default localizer
 FLOOR_BLANK_MS = 5.0
-#: how to get the AprilTag contender when it is missing
-APRILTAG_INSTALL = "pip install pupil-apriltags (or make bench)"
-
-#: the one pupil_apriltags Detector of the process: destroying one can segfault
-#: (pupil-labs/apriltags#46), so it is created once and kept until exit.
-_APRILTAG_DETECTOR: list = []
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=number(1, integer=True), default=40, help="speed frames per configuration (default 40)")
     p.add_argument("--repeats", type=number(1, integer=True), default=5, help="timed repeats per frame (default 5)")
     p.add_argument("--samples", type=number(1, integer=True), default=600, help="accuracy frames over the envelope (default 600)")
     p.add_argument("--seed", type=number(0, integer=True), default=0)
     p.add_argument("--skip-peers", action="store_true", help="time only the localizer")
-
-
-def _markers():
-    import cv2
-
-    aruco = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50), 0, 96, borderBits=1)
-    april = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), 0, 100,
-                                          borderBits=1)
-    return aruco, april
 
 
 def _paste(refl, tag, x, y, size):
@@ -69,14 +53,14 @@ def _speed_frames(camera, n, rng, n_targets=1, with_markers=True):
     from localizer import TargetPose
 
     photos = list(real_photos(camera).values()) or [np.full(camera.shape, 0.5)]
-    aruco, april = _markers()
+    markers = marker_images()
     frames = []
     s = camera.width / 512.0
     for i in range(n):
         refl = photos[i % len(photos)].copy()
         if with_markers:
-            _paste(refl, aruco, int(40 * s), int(60 * s), int(80 * s))
-            _paste(refl, april, int(40 * s), int(280 * s), int(80 * s))
+            _paste(refl, markers["aruco"], int(40 * s), int(60 * s), int(80 * s))
+            _paste(refl, markers["apriltag"], int(40 * s), int(280 * s), int(80 * s))
         poses = []
         for k in range(n_targets):
             cols = n_targets if n_targets <= 4 else 4
@@ -118,38 +102,6 @@ def _time_interleaved(fns: dict, frames, repeats) -> dict:
     return {k: 1000.0 * statistics.median(v) for k, v in per.items()}
 
 
-def _peers(camera):
-    import cv2
-    import numpy as np
-
-    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50),
-                                  cv2.aruco.DetectorParameters())
-    obj = np.array([[-0.05, 0.05, 0], [0.05, 0.05, 0], [0.05, -0.05, 0], [-0.05, -0.05, 0]], np.float32)
-    K = camera.K
-    dist = np.zeros(5)
-
-    def aruco(img):
-        corners, ids, _ = det.detectMarkers(img)
-        out = []
-        for c in corners:
-            out.append(cv2.solvePnP(obj, c.reshape(4, 2), K, dist, flags=cv2.SOLVEPNP_IPPE_SQUARE))
-        return out
-
-    try:
-        from pupil_apriltags import Detector
-    except ImportError:
-        return {"aruco": aruco}, None
-    if not _APRILTAG_DETECTOR:
-        _APRILTAG_DETECTOR.append(Detector(families="tag36h11", nthreads=1))
-    apr = _APRILTAG_DETECTOR[0]
-    params = (camera.fx, camera.fy, camera.cx, camera.cy)
-
-    def april(img):
-        return apr.detect(img, estimate_tag_pose=True, camera_params=params, tag_size=0.1)
-
-    return {"aruco": aruco, "apriltag": april}, apr
-
-
 def run(args) -> dict:
     import cv2
 
@@ -185,7 +137,7 @@ def _run(args) -> dict:
     # caches as the others left them, closer to a pipeline that does other work between frames)
     fns = {f"localizer_{m}": (lambda f, m=m: detect_targets(f, cam, method=m)) for m in ("exact", "thesis")}
     if not args.skip_peers:
-        peers, _ = _peers(cam)
+        peers = peer_detectors(cam)
         fns.update(peers)
         for name, fn in peers.items():
             found[name] = sum(len(fn(f)) >= 1 for f in frames)
@@ -202,7 +154,7 @@ def _run(args) -> dict:
         row = {"size": f"{w}x{h}", "localizer_exact_ms": _time(lambda f: detect_targets(f, c), fr, args.repeats),
                "found": sum(len(detect_targets(f, c)) >= 1 for f in fr) / len(fr)}
         if not args.skip_peers:
-            peers, _ = _peers(c)
+            peers = peer_detectors(c)
             for name, fn in peers.items():
                 row[f"{name}_ms"] = _time(fn, fr, max(1, args.repeats // 2))
         result["resolution"].append(row)

@@ -14,7 +14,9 @@ from agvsim.bench.envelope_conditions import NAMES, parse_conditions
 from agvsim.bench.envelope_frames import (Radiance, bar_rows, camera_for, expose_frame, make_frame, render_radiance,
                                           render_scene, sample_scene, scene_rng)
 from agvsim.bench.envelope_sensor import FrameSettings, psf_kernel, srgb_encode, vignetting
-from localizer import Camera, TargetPose, TargetSpec
+from agvsim.bench.peers import peer_detectors
+from agvsim.bench.envelope_frames import MARKER_SIDE
+from localizer import Camera, TargetPose, TargetSpec, detect_targets
 
 #: no noise: the frame is a function of the scene and the optics alone
 CLEAN = FrameSettings(full_well=0.0, read_noise=0.0)
@@ -134,7 +136,7 @@ def test_hires_cameras_share_the_field_of_view():
 
 def test_a_tiny_run_reports_every_key():
     args = argparse.Namespace(frames=2, hires_frames=1, conditions="baseline,jpeg70", seed=0, method="exact",
-                              save_frames=None)
+                              save_frames=None, peers=False, repeats=1)
     result = envelope.run(args)
     assert [c["name"] for c in result["conditions"]] == ["baseline", "jpeg70"]
     for c in result["conditions"]:
@@ -148,6 +150,43 @@ def test_a_tiny_run_reports_every_key():
     assert {"detection_pct", "d_error_pct_max", "within_3sigma_pct", "ms_median"} <= set(result["floors"])
     text = envelope.format_table({"machine": {}, **result})
     assert "baseline" in text and "floor:" in text
+
+
+def test_peer_markers_hang_beside_the_target_and_change_nothing_else():
+    plain, marked = render_scene(512, 480, 0, 0), render_scene(512, 480, 0, 0, markers=True)
+    assert dataclasses.replace(marked.scene, markers=()) == plain.scene
+    assert [m[0] for m in marked.scene.markers] == ["aruco", "apriltag"]
+    changed = np.argwhere(plain.radiance != marked.radiance)
+    # the markers are printed on the wall beside the target, clear of its print
+    corners = marked.camera.project(marked.scene.pose.points(np.array([-0.15, 0.15]), np.array([-0.1125, 0.1125])))
+    x_print = sorted(corners[:, 0])
+    assert changed.size and (changed[:, 1].max() < x_print[0] or changed[:, 1].min() > x_print[-1])
+    frame = expose_frame(FrameSettings(), marked)
+    found = {k: len(fn(frame.image)) for k, fn in peer_detectors(frame.camera, MARKER_SIDE).items()}
+    assert found["aruco"] == 1
+    assert len(detect_targets(frame.image, frame.camera)) == 1
+
+
+def test_contenders_are_timed_in_turn():
+    calls = []
+    out = envelope.in_turn({"a": lambda im: calls.append("a") or 1, "b": lambda im: calls.append("b") or [2]},
+                           np.zeros((2, 2), np.uint8), 3)
+    assert calls == ["a", "b"] * 3
+    assert out["a"][0] == 1 and out["b"][0] == [2] and out["a"][1] >= 0.0
+
+
+def test_a_run_with_peers_reports_their_times_and_the_ratio_floor():
+    args = argparse.Namespace(frames=2, hires_frames=1, conditions="baseline", seed=0, method="exact",
+                              save_frames=None, peers=True, repeats=2)
+    result = envelope.run(args)
+    c = result["conditions"][0]
+    assert c["found"] == 2 and c["false_detections"] == 0  # the markers are not targets
+    assert c["peers"]["aruco"]["found"] == 2
+    ratio = min(p["times_slower"] for p in c["peers"].values())
+    assert c["floors"]["peer_ratio"]["value"] == pytest.approx(ratio)
+    assert result["floors"]["peer_ratio"]["met"] == (ratio >= 10.0)
+    text = envelope.format_table({"machine": {}, **result, "seconds": 1.0})
+    assert "peers on the same frames" in text and "aruco" in text
 
 
 def test_conditions_parse_from_the_one_list():
