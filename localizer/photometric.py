@@ -33,7 +33,8 @@ pose (and the other root of eq A.14; for an uncertain start also from that pose 
 along its line of sight and turned by +-12 deg; the lowest cost wins). A start's fit stops
 when it reaches the basin of an earlier start's end (it would end there too) or when after
 two steps its cost is still a hundred times the best end's (it is headed for a worse
-minimum); each fit stops when a step, or the step the linear model promises, gains less
+minimum); a certain pose's mirror start is given up before its first step when it starts
+from a hundred times the first start's end cost (:data:`~localizer._kernels.photometric.MIRROR_GIVE_UP`); each fit stops when a step, or the step the linear model promises, gains less
 than a small share of the cost; the blur sd is held at its bounds (0.2-4 px) rather than
 clamped step after step. Only pixels of
 the printed target (bars, gap and half of the margin, which is what separates a target

@@ -1,9 +1,6 @@
-"""Kernels of the whole-target photometric pose refinement (:mod:`localizer.photometric`).
-
-The model, the censoring of clipped pixels and the starts are described in
-:mod:`localizer.photometric`. The geometry is :mod:`localizer._kernels.projection`'s, the
-blurred box-pixel step :mod:`localizer._kernels.blur`'s.
-"""
+"""Kernels of the whole-target photometric pose refinement (:mod:`localizer.photometric`: the
+model, the censoring of clipped pixels, the starts); the geometry is
+:mod:`localizer._kernels.projection`'s, the blurred box-pixel step :mod:`localizer._kernels.blur`'s."""
 from __future__ import annotations
 
 import math
@@ -13,7 +10,7 @@ import numpy as np
 from localizer._jit import jit
 from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction, sampled_step
 from localizer._kernels.projection import bar_edge_u, edge_x, edge_x_jacobian, plane, ray_inverse_range
-from localizer._kernels.records import ColumnModel, Refinement, Selection
+from localizer._kernels.records import ColumnModel, FitEnds, Refinement, Selection
 
 #: the fraction of the printed margin (from the bars outwards) that enters the fit
 MARGIN_SHARE = 0.5
@@ -37,6 +34,12 @@ BASIN = 1e-2
 #: before it after ABANDON_AFTER steps is abandoned (it is headed for a worse minimum)
 ABANDON = 100.0
 ABANDON_AFTER = 2
+#: a certain pose's (not ``wide``) mirror start (eq A.14's other root) is given up before its first
+#: step when its cost there is above this many times the first start's end cost (ABANDON's factor,
+#: without its two steps). Of 1,170 on the envelope's frames it won 8, from at most 56 times (10 lost
+#: a 9.5 m target's alpha in the thesis points envelope); 40 % start above 100 (5 of a blurred
+#: target's 12 model evaluations). Not ``wide``: there a start from 4,500 times the best can win
+MIRROR_GIVE_UP = 100.0
 #: starts of the fit: the edge-based pose scaled along its line of sight, and turned (rad)
 SCALES = (1.0, 0.985, 1.015, 0.97, 1.03)
 TURN = math.radians(12.0)
@@ -206,17 +209,18 @@ def _solve(A, g, lam, p):
 
 
 @jit
-def lm(p, obs, sel, cam, target, positive, iterations, tol, end_p, end_A, end_cost, n_ends, best):
+def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, give_up, resume):
     """Levenberg-Marquardt of :func:`evaluate` from ``p`` (7,), updated in place, at most
     ``iterations`` steps, ended when a step lowers the cost by less than ``tol`` of it or the
-    linear model promises less than that. The ends of earlier fits of the same pixels (their
-    parameters ``end_p`` (k, 7), normal matrices ``end_A`` (k, 7, 7) and costs ``end_cost``
-    (k,), ``n_ends`` of them filled): a fit that reaches the bowl of one of them stops there
-    (:func:`same_basin`: it would end where that one did). Returns ``(cost, merged)``:
-    ``merged`` the index of that end, -2 when the fit was abandoned (after
-    :data:`ABANDON_AFTER` steps its cost still above :data:`ABANDON` times ``best``, the
-    lowest end cost so far), else -1 (and the normal matrix at ``p`` is left in
-    ``end_A[n_ends]`` when there is room).
+    linear model promises less than that. The ends of earlier fits of the same pixels
+    (``ends``: :class:`~localizer._kernels.records.FitEnds`, ``n_ends`` of them filled): a fit
+    that reaches the bowl of one of them stops there (:func:`same_basin`: it would end where
+    that one did). ``resume``: the index of an end at ``p`` whose normal equations are taken
+    rather than formed again (-1: none). Returns ``(cost, merged)``: ``merged`` the index of
+    that end, -2 when the fit was abandoned (after :data:`ABANDON_AFTER` steps its cost still
+    above :data:`ABANDON` times ``best``, the lowest end cost so far, or before its first step
+    above ``give_up`` times it), else -1 (and the normal equations at ``p`` are left in
+    ``ends.A[n_ends]``, ``ends.g[n_ends]`` when there is room).
 
     The damped normal equations are solved by ``np.linalg.solve`` (LAPACK), not by
     :mod:`localizer.smallmat` like the other fits: LAPACK's (OpenBLAS's) operation order
@@ -225,7 +229,14 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, end_p, end_A, end_co
     n = obs.size
     res = np.empty(n)
     J = np.empty((n, 7))
-    cost, A, g = normal_equations(p, obs, sel, cam, target, positive, res, J)
+    if resume >= 0:  # the very numbers normal_equations would give again at this p
+        cost = ends.cost[resume]
+        A = ends.A[resume].copy()
+        g = ends.g[resume].copy()
+    else:
+        cost, A, g = normal_equations(p, obs, sel, cam, target, positive, res, J)
+        if n_ends > 0 and cost > give_up * best:
+            return cost, -2
     lam = 1e-3
     q = np.empty(7)
     for it in range(iterations):
@@ -249,7 +260,7 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, end_p, end_A, end_co
             if conv:
                 break
             for e in range(n_ends):
-                if same_basin(p, cost, end_p[e], end_A[e], end_cost[e]):
+                if same_basin(p, cost, ends.p[e], ends.A[e], ends.cost[e]):
                     return cost, e
             if it + 1 >= ABANDON_AFTER and cost > ABANDON * best:
                 return cost, -2
@@ -266,10 +277,11 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, end_p, end_A, end_co
             lam *= 10.0
             if lam > 1e7:
                 break
-    if n_ends < end_cost.size:
+    if n_ends < ends.cost.size:
         for a in range(7):
+            ends.g[n_ends, a] = g[a]
             for b in range(7):
-                end_A[n_ends, a, b] = A[a, b]
+                ends.A[n_ends, a, b] = A[a, b]
     return cost, -1
 
 
@@ -387,22 +399,21 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     obs = np.empty(n)
     for q in range(n):
         obs[q] = image[pr[q], ucols[pci[q]]]
-    # starts: the edge-based pose, scaled along its line of sight (the range is what clipped
-    # edges get wrong), turned by +-TURN (small targets: alpha is weakly determined), and
-    # the other root of A.14 (the mirror solution, thesis section 4.2.2) when it differs
-    # (only when the edge-based pose is uncertain, ``wide``: otherwise from that pose and the
-    # other root alone)
+    # starts (the best one's end goes on from its normal equations, lm's ``resume``): the edge-based
+    # pose, scaled along its line of sight (the range is what clipped edges get wrong), turned by
+    # +-TURN (small targets: alpha is weakly determined), and the other root of A.14 (the mirror solution, thesis section 4.2.2) when it differs
+    # (only when the edge-based pose is uncertain, ``wide``: otherwise from it and the other root)
     n_alt = 1 if abs(alt_alpha - p0[2]) > 0.01 else 0
     n_scales = len(SCALES) if wide else 1
     n_starts = n_scales * (1 + n_alt) + (2 if wide else 0)
     best = np.empty(7)
     best_cost = np.inf
     # the ends of the starts' fits, for the later starts to recognise (lm: a start that reaches
-    # an earlier one's basin stops there)
-    end_p = np.empty((n_starts, 7))
-    end_A = np.empty((n_starts, 7, 7))
-    end_cost = np.empty(n_starts)
+    # an earlier one's basin stops there; a certain pose's mirror start given up when far worse)
+    ends = FitEnds(np.empty((n_starts, 7)), np.empty((n_starts, 7, 7)), np.empty((n_starts, 7)), np.empty(n_starts))
     n_ends = 0
+    i_best = -1
+    give_up = np.inf if wide else MIRROR_GIVE_UP
     for st in range(n_starts):
         p[:4] = p0
         if st < n_scales * (1 + n_alt):
@@ -420,19 +431,20 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
         p[5] = bright0 if bright0 < CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = min(max(sigma0, SIGMA_MIN), SIGMA_MAX)
         # iteration counts typed int64, not as the literals 6 and 30: one compiled lm, not two
-        c, merged = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS), START_TOL, end_p, end_A,
-                       end_cost, n_ends, best_cost)
+        c, merged = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS), START_TOL, ends, n_ends,
+                       best_cost, give_up, np.int64(-1))
         if merged != -1:
             continue
         for a in range(7):
-            end_p[n_ends, a] = p[a]
-        end_cost[n_ends] = c
-        n_ends += 1
+            ends.p[n_ends, a] = p[a]
+        ends.cost[n_ends] = c
         if c < best_cost:
             best_cost = c
             best[:] = p
+            i_best = n_ends
+        n_ends += 1
     if not best_cost < np.inf:  # every start turned beyond ALPHA_MAX (or no finite fit): nothing to refine
         return Refinement(False, p, n, 0.0)
     p[:] = best
-    cost, _ = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS), TOL, end_p, end_A, end_cost, 0, np.inf)
+    cost, _ = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS), TOL, ends, 0, np.inf, np.inf, i_best)
     return Refinement(True, p, n, cost)

@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "N_REASONS", "REASONS", "SEARCH_COUNTS",
-           "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitGeometry", "FitStatus",
+           "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitEnds", "FitGeometry", "FitStatus",
            "Intrinsics", "Levels", "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest",
            "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record",
            "record_dtype"]
@@ -269,6 +269,18 @@ class ColumnModel(NamedTuple):
     dfxb: np.ndarray  # (n, 5) its derivatives over (X, Z, alpha, Y, sigma)
     ylin: np.ndarray  # (n, 2) top and bottom lines (px)
     dylin: np.ndarray  # (n, 2, 4) their derivatives over (X, Z, alpha, Y)
+
+
+class FitEnds(NamedTuple):
+    """Where the starts of a photometric fit ended (:func:`localizer._kernels.photometric.lm`),
+    arrays filled in place for up to ``k`` ends: the parameters there, the normal matrix and
+    gradient of :func:`~localizer._kernels.photometric.normal_equations` there, and the cost
+    (grey levels^2)."""
+
+    p: np.ndarray  # (k, 7)
+    A: np.ndarray  # (k, 7, 7)
+    g: np.ndarray  # (k, 7)
+    cost: np.ndarray  # (k,)
 
 
 class Refinement(NamedTuple):

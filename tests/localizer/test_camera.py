@@ -56,3 +56,14 @@ def test_opencv_yaml_roundtrip_and_errors(tmp_path):
         Camera.from_opencv_yaml(bad)
     with pytest.raises(FileNotFoundError, match="nope.yaml"):
         Camera.from_opencv_yaml(tmp_path / "nope.yaml")
+
+
+def test_cropped_is_the_checked_camera_of_the_crop():
+    cams = (Camera.thesis(16.0), Camera(500.0, 510.0, 300.5, 250.25, 640, 480, (0.1, -0.05, 0.001, 0.002)))
+    for cam in cams:
+        for x0, y0, x1, y1 in ((0, 0, 640, 480), (10, 20, 90, 60), (3, 5, 11, 13), (np.int64(4), 2, 50, 40)):
+            got = cam.cropped(x0, y0, x1, y1)
+            want = Camera(cam.fx, cam.fy, cam.cx - x0, cam.cy - y0, x1 - x0, y1 - y0, cam.dist)
+            assert got == want and type(got.cx) is float and type(got.width) is int
+    with pytest.raises(ValueError, match="Camera.width"):
+        cams[0].cropped(10, 10, 17, 40)  # 7 px: what the checks refuse is still refused

@@ -7,9 +7,9 @@ from numba import njit
 
 from localizer import Camera, TargetPose, TargetSpec
 from localizer._kernels.blur import ANALYTIC_SD, blur_weights, closed_step, edge_fraction, gauss_cdf_pdf
-from localizer._kernels.photometric import (MARGIN_SHARE, MAX_LINES, REACH, SIGMA_MAX, evaluate, normal_equations,
-                                            select)
-from localizer._kernels.records import Intrinsics, TargetConstants
+from localizer._kernels.photometric import (ITERATIONS, MARGIN_SHARE, MAX_LINES, MIRROR_GIVE_UP, REACH, SIGMA_MAX,
+                                            START_ITERATIONS, START_TOL, TOL, evaluate, lm, normal_equations, select)
+from localizer._kernels.records import FitEnds, Intrinsics, TargetConstants
 from localizer.synthetic import render_frame
 
 DEG = math.pi / 180
@@ -186,3 +186,46 @@ def test_blur_is_held_at_its_bound(rng):
     assert r is not None
     assert r[0][6] == SIGMA_MAX
     assert abs(r[0][1] / c[2] - 1) < 0.05
+
+
+def _ends(k=2):
+    return FitEnds(np.empty((k, 7)), np.empty((k, 7, 7)), np.empty((k, 7)), np.empty(k))
+
+
+def test_lm_resumes_from_an_end_bit_for_bit(rng):
+    """The final fit taken on from a start's end with that end's normal equations kept ends
+    exactly where forming them again would."""
+    for blur, lighting in ((0.5, "saturated"), (2.0, "normal")):
+        p, obs, sel, intr, tc = _setup(rng, blur, lighting)
+        p[1] *= 1.01
+        args = (obs, sel, intr, tc, True)
+        ends = _ends()
+        c, merged = lm(p, *args, np.int64(START_ITERATIONS), START_TOL, ends, 0, np.inf, np.inf, np.int64(-1))
+        assert merged == -1
+        ends.p[0], ends.cost[0] = p, c
+        c2, A, g = normal_equations(p, *args, np.empty(obs.size), np.empty((obs.size, 7)))
+        assert c2 == c and np.array_equal(A, ends.A[0]) and np.array_equal(g, ends.g[0])
+        q1, q2 = p.copy(), p.copy()
+        r1 = lm(q1, *args, np.int64(ITERATIONS), TOL, _ends(), 0, np.inf, np.inf, np.int64(-1))
+        r2 = lm(q2, *args, np.int64(ITERATIONS), TOL, ends, 0, np.inf, np.inf, np.int64(0))
+        assert r1 == r2 and np.array_equal(q1, q2)
+
+
+def test_a_far_worse_start_is_given_up_before_its_first_step(rng):
+    """A start whose cost exceeds ``give_up`` times the best end's is given up before its first
+    step (``MIRROR_GIVE_UP`` for a certain pose's mirror start); below it, it is fitted."""
+    assert MIRROR_GIVE_UP >= 100.0
+    p, obs, sel, intr, tc = _setup(rng, 2.0)
+    args = (obs, sel, intr, tc, True)
+    ends = _ends()
+    c, _ = lm(p, *args, np.int64(START_ITERATIONS), START_TOL, ends, 0, np.inf, np.inf, np.int64(-1))
+    ends.p[0], ends.cost[0] = p, c
+    far = p.copy()
+    far[2] = -far[2]  # the mirror orientation
+    c0 = evaluate(far, *args, np.empty(obs.size), np.empty((obs.size, 7)), False)
+    assert c0 > 2.0 * c
+    q = far.copy()
+    assert lm(q, *args, np.int64(START_ITERATIONS), START_TOL, ends, 1, c, 0.5 * c0 / c, np.int64(-1)) == (c0, -2)
+    assert np.array_equal(q, far)  # not a step taken
+    lm(q, *args, np.int64(START_ITERATIONS), START_TOL, ends, 1, c, 2.0 * c0 / c, np.int64(-1))
+    assert not np.array_equal(q, far)
