@@ -5,6 +5,7 @@ import dataclasses
 import functools
 import math
 import time
+import types
 
 import numpy as np
 
@@ -96,6 +97,13 @@ def _resolved_params(items: tuple, shape: tuple) -> DetectorParams:
     return DetectorParams.from_kwargs(**dict(items)).resolved(shape[0], shape[1])
 
 
+@functools.lru_cache(maxsize=64)
+def _level_params(p: DetectorParams) -> types.MappingProxyType:
+    """``p``'s fields as a read-only mapping, ``pyramid`` off: the parameters of one level of a
+    large frame (cached: ``dataclasses.asdict`` costs ~0.1 ms)."""
+    return types.MappingProxyType({**{f.name: getattr(p, f.name) for f in dataclasses.fields(p)}, "pyramid": False})
+
+
 def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), method: str = "exact", *,
                    stats: DetectionStats | None = None, **params) -> list[TargetObservation]:
     """Find every two-bar target in ``image`` and recover the camera pose to each.
@@ -131,7 +139,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         # a large frame: searched on a coarse level, each target measured where its blur is 1-2 px
         accepted, seconds = st.accepted, st.seconds
         out = detect_pyramid(functools.partial(detect_targets, target=target, method=method, stats=st), img, camera,
-                             {**dataclasses.asdict(p), "pyramid": False})
+                             _level_params(p))
         out = _drop_shared_bars(out, st)
         st.accepted = accepted + len(out)
         st.seconds = seconds + time.perf_counter() - t0
