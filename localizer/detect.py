@@ -61,6 +61,8 @@ ENCODED_SHIFT = 0.16
 #: two strokes of lettering 21, 29 and 20 px wide (a sharp 1920 x 1200 frame) fit with a shift
 #: of 1.1 sd. Clipped targets (whose clipped pixels hide up to ~0.6 px of each edge) are not held to it
 MAX_SHIFT_SHARE = 0.75
+#: the fields of :class:`DetectorParams` whose default (None) depends on the frame's size
+RESOLVED_FIELDS = ("coarse_step", "threshold_window", "min_rows")
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:
@@ -92,9 +94,12 @@ def as_gray(image, camera: Camera) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _resolved_params(items: tuple, shape: tuple) -> DetectorParams:
-    """Validated, resolution-resolved parameters (cached: building them costs ~0.1 ms)."""
-    return DetectorParams.from_kwargs(**dict(items)).resolved(shape[0], shape[1])
+def _resolved_params(items: tuple, shape: tuple | None) -> DetectorParams:
+    """Validated, resolution-resolved parameters (cached: building them costs ~0.1 ms); ``shape``
+    None when ``items`` name every resolution-dependent field (a level of a large frame: its crops,
+    of a new size in every frame, then share one entry)."""
+    p = DetectorParams.from_kwargs(**dict(items))
+    return p if shape is None else p.resolved(shape[0], shape[1])
 
 
 @functools.lru_cache(maxsize=64)
@@ -131,7 +136,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         raise ValueError(f"target must be a localizer.TargetSpec, got {type(target).__name__}")
     img = as_gray(image, camera)
     try:
-        p = _resolved_params(tuple(sorted(params.items())), img.shape)
+        shape = img.shape if any(params.get(n) is None for n in RESOLVED_FIELDS) else None
+        p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
     st = stats if stats is not None else DetectionStats()
