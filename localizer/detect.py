@@ -5,6 +5,7 @@ import dataclasses
 import functools
 import math
 import time
+import types
 
 import numpy as np
 
@@ -52,6 +53,16 @@ SRGB_TO_LINEAR = np.clip(np.rint(255.0 * np.where(np.arange(256) <= 10.31475, np
 #: edges' blur sd (px, at least 0.5). On the envelope benchmark's frames the share is 0.22-0.41
 #: through the sRGB curve and at most 0.12 with a linear response (blur, noise, flare, JPEG, Bayer)
 ENCODED_SHIFT = 0.16
+#: an unclipped target's common edge shift ``delta`` (the exact fit's, towards the dark side,
+#: px) is at most this share of its blur sd (px, at least 0.5): a monotone response moves a
+#: blurred edge's gradient peak by a fraction of its blur (the sRGB curve 0.22-0.41, a linear
+#: one at most 0.12 on the envelope benchmark's targets, 512 x 480 to 2448 x 2048, blur 0.6-3.8
+#: px), whereas bars narrower (or wider) than their gap by more than the blur are not a target:
+#: two strokes of lettering 21, 29 and 20 px wide (a sharp 1920 x 1200 frame) fit with a shift
+#: of 1.1 sd. Clipped targets (whose clipped pixels hide up to ~0.6 px of each edge) are not held to it
+MAX_SHIFT_SHARE = 0.75
+#: the fields of :class:`DetectorParams` whose default (None) depends on the frame's size
+RESOLVED_FIELDS = ("coarse_step", "threshold_window", "min_rows")
 
 
 def as_gray(image, camera: Camera) -> np.ndarray:
@@ -83,9 +94,19 @@ def as_gray(image, camera: Camera) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=64)
-def _resolved_params(items: tuple, shape: tuple) -> DetectorParams:
-    """Validated, resolution-resolved parameters (cached: building them costs ~0.1 ms)."""
-    return DetectorParams.from_kwargs(**dict(items)).resolved(shape[0], shape[1])
+def _resolved_params(items: tuple, shape: tuple | None) -> DetectorParams:
+    """Validated, resolution-resolved parameters (cached: building them costs ~0.1 ms); ``shape``
+    None when ``items`` name every resolution-dependent field (a level of a large frame: its crops,
+    of a new size in every frame, then share one entry)."""
+    p = DetectorParams.from_kwargs(**dict(items))
+    return p if shape is None else p.resolved(shape[0], shape[1])
+
+
+@functools.lru_cache(maxsize=64)
+def _level_params(p: DetectorParams) -> types.MappingProxyType:
+    """``p``'s fields as a read-only mapping, ``pyramid`` off: the parameters of one level of a
+    large frame (cached: ``dataclasses.asdict`` costs ~0.1 ms)."""
+    return types.MappingProxyType({**{f.name: getattr(p, f.name) for f in dataclasses.fields(p)}, "pyramid": False})
 
 
 def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), method: str = "exact", *,
@@ -115,7 +136,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         raise ValueError(f"target must be a localizer.TargetSpec, got {type(target).__name__}")
     img = as_gray(image, camera)
     try:
-        p = _resolved_params(tuple(sorted(params.items())), img.shape)
+        shape = img.shape if any(params.get(n) is None for n in RESOLVED_FIELDS) else None
+        p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
     st = stats if stats is not None else DetectionStats()
@@ -123,7 +145,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         # a large frame: searched on a coarse level, each target measured where its blur is 1-2 px
         accepted, seconds = st.accepted, st.seconds
         out = detect_pyramid(functools.partial(detect_targets, target=target, method=method, stats=st), img, camera,
-                             {**dataclasses.asdict(p), "pyramid": False})
+                             _level_params(p))
         out = _drop_shared_bars(out, st)
         st.accepted = accepted + len(out)
         st.seconds = seconds + time.perf_counter() - t0
@@ -223,12 +245,15 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
         img, camera, v = view[0], view[1], view[2]
     if est is None:
         return edges, cxs, top, bot, None
+    blur = _blur_sd(img, v)
+    if not clipped and abs(est.edge_bias) > MAX_SHIFT_SHARE * max(blur, 0.5):
+        return edges, cxs, top, bot, None  # bars and gap of unequal widths: not a target
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
         c = est.covariance
         uncertain = bool(abs(c[2, 2]) > WIDE_SD_ALPHA ** 2 or abs(c[0, 0]) > (WIDE_SD_RANGE * est.distance) ** 2)
         if p.photometric == "all" or saturated or (p.photometric == "auto" and uncertain):
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
-            est = _photometric(img, camera, target, v, est, uncertain and saturated, _blur_sd(img, v))
+            est = _photometric(img, camera, target, v, est, uncertain and saturated, blur)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
         est = None

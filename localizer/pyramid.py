@@ -2,20 +2,27 @@
 is one or two pixels.
 
 A sensor of several megapixels behind an ordinary lens spreads an edge over many pixels: the
-thesis camera's 3 px of optical blur at 512 x 480 is 14 px at 2448 x 2048. The recognizer
-follows the blur it measures, but its windows and edge models lose precision and take longer
-as an edge widens past a few pixels, while an area-averaged (box-filtered) copy of the frame
-holds the same information about such an edge in fewer pixels. So a frame of at least
-``2 * LEVEL_ROWS`` rows is searched on its coarse level (area-downsampled by the power of
-two ``k`` that leaves at least ``LEVEL_ROWS`` rows: about the thesis camera's resolution,
-where a target is large enough to be found wherever it is in the envelope), and each target
-found there (without the pixel-level refinement) is measured again on a crop of the finest
-level whose blur is at most ``SIGMA_TARGET`` px (the full frame for a sharp target), with the
-full frame's detector parameters (lengths scaled to the level). A crop is a pinhole camera too (principal point moved by the crop's corner), so
+thesis camera's 3 px of optical blur at 512 x 480 is 7.5 px at 1280 x 1024 and 14 px at
+2448 x 2048. The recognizer follows the blur it measures, but its windows (edge centroids of
+at most +-4 px, the refinement's blur of at most 4 px) are sized for edges of a few pixels: on
+edges blurred over 7.5 px the centroids stay near their rough starts and the tops and bottoms
+of narrow bars come out up to 2 px inside (range +6 %), and at 14 px a third of the targets
+are not found. An area-averaged (box-filtered) copy of the frame holds the same information
+about such an edge in fewer pixels. So a frame of at least ``2 * LEVEL_ROWS`` rows is searched
+on its coarse level (area-downsampled by the power of two ``k`` that leaves at least
+``LEVEL_ROWS`` rows: about the thesis camera's resolution, where a target is large enough to be
+found wherever it is in the envelope), and each target found there (without the pixel-level
+refinement) is measured again on a crop of the finest level whose blur is at most
+``SIGMA_TARGET`` px (the full frame's pixels for a sharp target), with the full frame's
+detector parameters (lengths scaled to the level): the blur the thesis camera's pipeline is
+accurate at (blur2 at 512 x 480: range error 0.05 % mean). That level may be coarser than the
+search's (a strongly blurred target; if it does not confirm the target there, e.g. a small one
+that has become too few pixels for the recognizer, the levels down to the search's are tried
+in turn). A crop is a pinhole camera too (principal point moved by the crop's corner), so
 the pose it gives needs no conversion; its pixel measurements are moved back to the frame's
 coordinates. A candidate of the coarse level that its finer level does not confirm is not
-reported (lettering that a coarse level blurs into bars); one measured on the coarse level
-itself (blurred beyond ``k SIGMA_TARGET`` px) is measured again there, refined.
+reported (lettering that a coarse level blurs into bars); one that is not confirmed on any
+level from its own to the search's is reported as measured on the search level.
 
 Pixel convention (:class:`localizer.camera.Camera`): pixel ``j`` covers ``[j - 0.5, j + 0.5]``;
 level ``k``'s pixel ``j`` covers the frame's pixels ``k j .. k j + k - 1``, i.e. frame
@@ -24,6 +31,7 @@ coordinate ``x = k (x_k + 0.5) - 0.5`` (:meth:`Camera.scaled`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -36,8 +44,13 @@ __all__ = ["LEVEL_ROWS", "SIGMA_TARGET", "coarse_factor", "detect_pyramid", "lev
 
 #: the coarse level keeps at least this many rows (the thesis camera's 480)
 LEVEL_ROWS = 480
-#: a target is measured on the finest level where its blur sd is at most this (px)
-SIGMA_TARGET = 1.5
+#: a target is measured on the finest level where its blur sd is at most this (px): the envelope
+#: benchmark's blur3_1280 and blur3_2448 frames (7.5 and 14 px) measured where their blur is at
+#: most 1.5 px (a factor of 8) gave a range error of 0.38 % mean and 3.9 % max (targets of 9-29
+#: rows: too few pixels), at most 2 px 0.22 % and 1.8 %, at most 2.5 px 0.28 % and 4.1 %
+SIGMA_TARGET = 2.0
+#: the coarsest level a target is measured on (a factor of the frame's pixels)
+MAX_FACTOR = 16
 #: the crop around a coarse target, in target widths either side and bar heights above and below
 CROP_WIDTHS = 0.75
 CROP_HEIGHTS = 0.75
@@ -68,8 +81,10 @@ def level_image(image: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
 def _level_camera(camera: Camera, k: int) -> Camera:
-    """The camera of level ``k`` (whole blocks: the frame's ``(W // k) k`` first columns)."""
+    """The camera of level ``k`` (whole blocks: the frame's ``(W // k) k`` first columns; cached:
+    a camera is immutable, and its checks cost ~40 us)."""
     hh, ww = camera.height // k, camera.width // k
     return Camera(camera.fx / k, camera.fy / k, (camera.cx + 0.5) / k - 0.5, (camera.cy + 0.5) / k - 0.5, ww, hh,
                   camera.dist)
@@ -136,6 +151,30 @@ def _same(a: TargetObservation, b: TargetObservation) -> bool:
     return abs(ma.centre[0] - mb.centre[0]) < 0.25 * ma.delta_x and abs(ma.centre[1] - mb.centre[1]) < 0.25 * ma.delta_y
 
 
+def _measure_at(detect, image: np.ndarray, coarse: tuple[np.ndarray, int], camera: Camera, resolved: dict,
+                box: tuple[int, int, int, int], j: int) -> list[TargetObservation]:
+    """The targets ``detect`` finds on the crop ``box = (x0, y0, x1, y1)`` of ``image`` (frame pixels)
+    area-averaged by ``j``, in the frame's pixels; ``coarse = (level, k)`` the frame's level of
+    factor ``k``, from which a level of ``j >= k`` is made (the same pixels: both halve aligned
+    blocks in turn; the frame's pixels are not read again). The crop starts on the level's blocks
+    (its first column and row rounded down to multiples of ``j``): on the search's level it is
+    then a window of the pixels the target was found on, not of others area-averaged in another
+    phase (on blurred narrow bars the recognizer's tests can pass on one and not the other)."""
+    x0, y0, x1, y1 = box
+    x0, y0 = x0 - x0 % j, y0 - y0 % j
+    cam = camera.cropped(x0, y0, x1, y1)
+    small, k = coarse
+    if j >= k > 1:
+        q, nr, nc = j // k, (y1 - y0) // j, (x1 - x0) // j
+        patch = level_image(small[y0 // k:y0 // k + nr * q, x0 // k:x0 // k + nc * q], q)
+    else:
+        patch = level_image(image[y0:y1, x0:x1], j) if j > 1 else image[y0:y1, x0:x1]
+    if j > 1:
+        cam = _level_camera(cam, j)
+    fine = detect(np.ascontiguousarray(patch), cam, **_params_at(resolved, j))
+    return [dataclasses.replace(f, measurements=_to_frame(f.measurements, j, x0, y0)) for f in fine]
+
+
 def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) -> list[TargetObservation]:
     """The targets of a large frame ``image`` ``(H, W)`` uint8 (module docstring).
 
@@ -160,21 +199,21 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
         # k px look alike): the finest level where it is at most SIGMA_TARGET px
         s = _blur(image, coarse, step=max(1, k // 2))
         j = 1
-        while j < k and s / j > SIGMA_TARGET:
+        while s / j > SIGMA_TARGET and j < MAX_FACTOR:
             j *= 2
         x0, y0, x1, y1 = _crop(camera, coarse.measurements)
-        patch = image[y0:y1, x0:x1]
-        cam = camera.cropped(x0, y0, x1, y1)
-        if j > 1:
-            patch = level_image(patch, j)
-            cam = _level_camera(cam, j)
-        fine = detect(np.ascontiguousarray(patch), cam, **_params_at(resolved, j))
-        fine = [dataclasses.replace(f, measurements=_to_frame(f.measurements, j, x0, y0)) for f in fine]
-        fine = [f for f in fine if _same(f, coarse)]
-        if len(fine) == 1:
-            out.append(fine[0])
-        elif j == k:  # measured on the coarse level itself: its own measurement, refined there
-            out.append(coarse)
+        # finer than the coarse level: that level alone (a target it does not confirm is not
+        # reported); coarser: there, else on the coarse level (a small target may be too few
+        # pixels for the recognizer on the coarser one)
+        for lv in ([j] if j < k else [j // 2 ** i for i in range(int(math.log2(j // k)) + 1)]):
+            fine = _measure_at(detect, image, (small, k), camera, resolved, (x0, y0, x1, y1), lv)
+            fine = [f for f in fine if _same(f, coarse)]
+            if len(fine) == 1:
+                out.append(fine[0])
+                break
+        else:
+            if j >= k:  # not confirmed on the coarse level itself: its own measurement there
+                out.append(coarse)
         # (a candidate of the coarse level that its finer level does not confirm is not reported)
     out.sort(key=lambda o: (o.measurements.rows[0], o.measurements.edges_x[0]))
     return out

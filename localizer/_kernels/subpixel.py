@@ -47,6 +47,17 @@ def edge_rows(image, rows, bounds):
 BLUR_EDGE_SIGMA = 0.06
 
 
+#: :func:`rows_blur` (the contrast between the runs' middles over the steepest step) of three
+#: equal runs ``w`` px wide blurred by a Gaussian of sd ``s``: ``s`` times ``[D(0) + D(2w) -
+#: 2 D(w)] / [1 - 2 exp(-u^2 / 2) + exp(-2 u^2)]`` (``u = w / s``, ``D(a)`` a run's blurred
+#: coverage ``a`` px from its middle), which is ~0.25 w for every u from 1.8 to 3.3 (s from 0.3 w
+#: to 0.55 w): a measured blur of at least NARROW_SHARE of the mean run may be up to
+#: ``w / NARROW_RUNS`` (the thesis camera's 3 px at 512 x 480 on bars of 7-10 px: measured
+#: 1.8-2.6 px)
+NARROW_SHARE = 0.22
+NARROW_RUNS = 1.8
+
+
 @jit
 def blur_floor(image, rows, bounds, floor):
     """The per-edge error floor (px) of a stack measured on ``rows`` (n,) with run boundaries
@@ -55,6 +66,9 @@ def blur_floor(image, rows, bounds, floor):
     (2 sd / w)^2))`` with ``w`` the narrowest of its three runs (px): where the blur is as wide as
     a bar, the edges of the bar and of the gap next to it are measured from their blurred sum."""
     s = rows_blur(image, rows, bounds)
+    wm = (bounds[3] - bounds[0]) / 3.0
+    if s >= NARROW_SHARE * wm:  # the profile cannot tell the blur: the largest it may be
+        s = max(s, wm / NARROW_RUNS)
     if s >= SIGMA_BLURRED:
         w = max(min(bounds[1] - bounds[0], bounds[2] - bounds[1], bounds[3] - bounds[2]), 1.0)
         q = 2.0 * s / w

@@ -78,6 +78,12 @@ def verify_grey(image, span, sample, xb, positive, s):
     # as far as a blurred edge reaches (edge_reach, beyond SHARP_REACH), leaving at least the
     # segment's middle fifth
     reach = edge_reach(image, ra, rb, xi)
+    # ... and on a blurred target the rows as far as its blurred ends reach (the stack starts and
+    # ends about where the bars' ends are, blurred: half their contrast), leaving a quarter of them
+    rr = max(reach[0], reach[1], reach[2], reach[3])
+    if rr > SHARP_REACH:
+        extra = min(max(rr - (ra - r0), 0), max((rb - ra - max(3, nr // 4)) // 2, 0))
+        ra, rb = ra + extra, rb - extra
     sds = np.empty(3)
     noise = np.empty(3)  # the noise down each segment (a bar is the same down a column)
     for s in range(3):

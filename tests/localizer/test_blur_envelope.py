@@ -12,6 +12,7 @@ from numba import njit
 from localizer import Camera, detect_targets
 from localizer._kernels.blur import ANALYTIC_SD, blur_weights, blurred_step
 from localizer._kernels.clipped import profile_blur
+from localizer._kernels.subpixel import BLUR_EDGE_SIGMA, NARROW_RUNS, blur_floor, rows_blur
 from localizer._kernels.verify import SHARP_REACH, edge_reach
 from localizer.synthetic import render_frame, random_pose, target_outline
 
@@ -80,6 +81,24 @@ def test_profile_blur_measures_the_blur_of_a_target(sigma):
     xi = np.rint(np.asarray(t["edges_x"])).astype(np.int64)
     reach = edge_reach(img, int(rows[0]), int(rows[-1]) + 1, xi)
     assert (reach <= SHARP_REACH).all() if sigma < 1.0 else (reach > SHARP_REACH).all() and (reach >= 2.0 * sigma).all()
+
+
+@pytest.mark.parametrize("u", [2.0, 2.5, 3.0])
+def test_narrow_runs_blur_floor_takes_the_largest_blur_the_profile_allows(u):
+    # bar, gap, bar of w = 9 px blurred u times less: the row profile's blur is ~0.25 w whatever u
+    # (1.8-3.3), far below the blur for u = 2; the per-edge floor is that of w / NARROW_RUNS at least
+    w, x0 = 9.0, 40.0
+    s = w / u
+    x = np.arange(120) + 0.5
+    cover = sum((1 if k % 2 == 0 else -1) * 0.5 * (1 + np.vectorize(math.erf)((x - (x0 + k * w)) / (s * math.sqrt(2))))
+                for k in range(4))
+    img = np.tile(np.rint(200.0 - 180.0 * cover).astype(np.uint8), (30, 1))
+    rows = np.arange(5, 25)
+    bounds = x0 + w * np.arange(4.0)
+    est = rows_blur(img, rows, bounds)
+    assert est == pytest.approx(0.25 * w, rel=0.12) and (u >= 3.0 or est < 0.8 * s)
+    big = max(s, w / NARROW_RUNS)
+    assert blur_floor(img, rows, bounds, 0.05) >= math.hypot(0.05, BLUR_EDGE_SIGMA * big * (1 + (2 * big / w) ** 2)) - 1e-9
 
 
 @njit

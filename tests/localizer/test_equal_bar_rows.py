@@ -48,11 +48,18 @@ def test_blurred_equal_bar_rows_find_nothing(cam16, blur, noise):
 
 @pytest.mark.parametrize("method", METHODS)
 def test_shared_bars_reject_both(cam16, method):
-    # without the periodic test the pairs of a row are found; they share bars, so none is kept
-    img = equal_bar_frame(cam16, 4, 5, 15, 16, 24, 172)
+    # without the periodic test the pairs of a row of bars as wide as their gaps are found; they
+    # share bars, so none is kept
+    img = equal_bar_frame(cam16, 4, 5, 10, 16, 24, 172)
     st = DetectionStats()
     assert detect_targets(img, cam16, method=method, reject_periodic=False, stats=st) == []
     assert st.rejected.get("shared_bars", 0) >= 2
+    # bars half as wide as their gaps (the fuzzed frame) do not fit a target at all: the exact
+    # fit needs a common edge shift of 1.25 px on sharp edges (localizer.detect.MAX_SHIFT_SHARE)
+    img = equal_bar_frame(cam16, 4, 5, 15, 16, 24, 172)
+    st = DetectionStats()
+    assert detect_targets(img, cam16, method=method, reject_periodic=False, stats=st) == []
+    assert st.rejected.get("pose", 0) >= 2
 
 
 @pytest.mark.parametrize("method", METHODS)

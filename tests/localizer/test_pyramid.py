@@ -39,13 +39,13 @@ def _pyramid(img, cam):
     return detect_pyramid(detect_targets, img, cam, p)
 
 
-def test_detect_targets_takes_the_pyramid_when_asked_for_large_frames_only():
+def test_detect_targets_takes_the_pyramid_on_large_frames_only():
     cam = Camera.thesis(16.0).scaled(1024, 960)
     pose = random_pose(np.random.default_rng(1), Camera.thesis(16.0), distance=(2.0, 3.0))
     img = render_frame(cam, pose, blur=6.0, noise=1.0, rng=np.random.default_rng(2))
-    via = [o.distance for o in detect_targets(img, cam, pyramid=True)]
+    via = [o.distance for o in detect_targets(img, cam)]  # (the default)
     assert via == [o.distance for o in _pyramid(img, cam)] and len(via) == 1
-    assert via != [o.distance for o in detect_targets(img, cam)]  # (the default: the whole frame)
+    assert via != [o.distance for o in detect_targets(img, cam, pyramid=False)]  # the whole frame
     small = Camera.thesis(16.0)
     img = render_frame(small, pose, blur=0.5, noise=1.0, rng=np.random.default_rng(2))
     assert [o.distance for o in detect_targets(img, small, pyramid=True)] == [o.distance for o in detect_targets(img, small)]
@@ -78,3 +78,24 @@ def test_a_heavily_blurred_large_frame_is_found_on_the_coarse_level():
             m = ok[0].measurements
             assert 0 <= m.edges_x[0] < m.edges_x[3] < cam.width and 0 <= m.rows[0] < m.rows[1] < cam.height
     assert found == 6
+
+
+def test_a_blurred_target_is_measured_where_its_blur_is_a_pixel_or_two():
+    # the thesis camera's 3 px of blur on a 1280 x 1024 sensor (7.5 px), the printed target on a
+    # darker wall (which bleeds into its margins). At the frame's own resolution the edge centroids
+    # (+-4 px windows) put the tops and bottoms of narrow bars up to 2 px inside: range errors of
+    # 1.5 % mean, 3 % max on these poses; measured on the level where the blur is <= 2 px (a factor
+    # of 4 here) 0.12 % mean, 0.5 % max
+    cam = Camera.thesis(16.0).scaled(1280, 1024)
+    rng = np.random.default_rng(5)
+    errors = []
+    for _ in range(12):
+        pose = random_pose(rng, Camera.thesis(16.0), distance=(1.5, 5.0), max_alpha=math.radians(60.0))
+        img = render_frame(cam, pose, blur=7.5, noise=2.0, background=0.3, rng=rng)
+        obs = [o for o in detect_targets(img, cam) if abs(o.beta - pose.beta) < 0.02]
+        assert len(obs) == 1
+        o = obs[0]
+        errors.append(abs(o.distance / pose.distance - 1.0))
+        e = np.array([o.distance - pose.distance, o.beta - pose.beta, o.alpha - pose.alpha])
+        assert e @ np.linalg.solve(o.covariance, e) < 14.16  # (3 sigma in 3-D)
+    assert np.mean(errors) < 0.003 and max(errors) < 0.01
