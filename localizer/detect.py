@@ -30,10 +30,6 @@ from localizer.thesis_pose import thesis_pose
 #: 4,800 frames of the accuracy sweep (a saturated target 7.6 m away); a pair of strokes of
 #: lettering, or a stroke beside a light strip, fits with 4 to 7
 MAX_FIT_RMS = 5.0
-#: an edge-based pose is "uncertain" (photometric refinement in "auto" mode, from several
-#: starts) when its orientation sd is above this (rad) or its range sd above this share of the range
-WIDE_SD_ALPHA = math.radians(1.0)
-WIDE_SD_RANGE = 0.003
 #: largest Mahalanobis distance (under the edge-based covariance) of an accepted photometric
 #: refinement from the edge-based pose; on 1,648 refinements of the accuracy sweep the
 #: largest was 4.9
@@ -250,8 +246,9 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
         return edges, cxs, top, bot, None  # bars and gap of unequal widths: not a target
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
         c = est.covariance
-        uncertain = bool(abs(c[2, 2]) > WIDE_SD_ALPHA ** 2 or abs(c[0, 0]) > (WIDE_SD_RANGE * est.distance) ** 2)
-        if p.photometric == "all" or saturated or (p.photometric == "auto" and uncertain):
+        # "uncertain": the edges' pose falls short of what the refinement is for (DetectorParams)
+        uncertain = bool(abs(c[2, 2]) > p.refine_alpha_sd ** 2 or abs(c[0, 0]) > (p.refine_range_sd * est.distance) ** 2)
+        if p.photometric == "all" or (p.photometric == "clipped" and saturated) or (p.photometric == "auto" and uncertain):
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
             est = _photometric(img, camera, target, v, est, uncertain and saturated, blur)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)

@@ -58,6 +58,8 @@ PARAM_RANGES: dict[str, tuple[str, dict]] = {
     "edge_window": ("number", dict(low=3, high=MAX_EDGE_WINDOW, integer=True, unit="px")),
     "edge_sigma_floor": ("number", dict(low=0.0, high=100.0, unit="px")),
     "photometric": ("choice", {}),
+    "refine_range_sd": ("number", dict(low=0.0, high=1.0)),
+    "refine_alpha_sd": ("number", dict(low=0.0, high=math.pi, unit="rad")),
     "response": ("choice", {}),
     "pyramid": ("bool", {}),
     "max_targets": ("number", dict(low=1, high=65536, integer=True)),
@@ -99,12 +101,16 @@ class DetectorParams:
     # --- exact pose covariance
     edge_sigma_floor: float = 0.05  # px, model error added to every averaged edge position
     # --- whole-target photometric refinement (localizer.photometric, undistorted cameras):
-    # "clipped" refines the pose of targets whose bright side is clipped (saturated light, where
-    # edges measured one at a time lose up to ~0.6 px each); "auto" those and every target whose
-    # edge-based pose is uncertain (orientation sd > 1 deg or range sd > 0.3 %: small, far or
-    # dim targets); "all" every target; "off" none. Costs ~0.5-2 ms per refined target (up to
-    # ~7 ms for an uncertain saturated one, which gets several starts)
+    # "auto" refines a target whose edge-based pose falls short: range sd above `refine_range_sd`
+    # of the range or orientation sd above `refine_alpha_sd` (small, far, dim or strongly
+    # blurred targets; a saturated one from several starts); "clipped" every target whose bright
+    # side is clipped (saturated light, where edges measured one at a time lose up to ~0.6 px
+    # each) and no other; "all" every target; "off" none. Costs ~0.3-1 ms per refined target (up
+    # to ~3 ms for a saturated one that falls short). The thresholds keep the edges' answer
+    # where its 3 sd is within 1.5 % of the range and 3 deg (BENCHMARKS.md: the speed each costs)
     photometric: str = "auto"
+    refine_range_sd: float = 0.005  # share of the range ("auto": refine above it)
+    refine_alpha_sd: float = math.radians(1.0)  # rad ("auto": refine above it)
     # --- the camera's response (grey level against light), for the edges and the refinement:
     # "linear" (machine-vision and raw frames: the pixels as they are); "srgb" (most USB, phone
     # and web cameras encode their frames with the sRGB curve: each target's pixels are

@@ -62,9 +62,10 @@ def test_srgb_encoded_targets_are_measured_within_their_covariance():
 def test_response_choices():
     frame = make_frame(BY_NAME["gamma"].settings, 0, GAMMA_FRAMES[0])
     pose = frame.scene.pose
-    auto = detect_targets(frame.image, frame.camera)
-    srgb = detect_targets(frame.image, frame.camera, response="srgb")
-    linear = detect_targets(frame.image, frame.camera, response="linear")
+    # refined on its pixels (photometric="all"), whose model assumes light-proportional grey levels
+    auto = detect_targets(frame.image, frame.camera, photometric="all")
+    srgb = detect_targets(frame.image, frame.camera, response="srgb", photometric="all")
+    linear = detect_targets(frame.image, frame.camera, response="linear", photometric="all")
     assert len(auto) == len(srgb) == len(linear) == 1
     assert auto[0].distance == srgb[0].distance and auto[0].alpha == srgb[0].alpha
     assert _errors(linear[0], pose)[0][0] > 3.0  # the pixels as they are: the range 5 sd off

@@ -93,6 +93,29 @@ def test_modes(rng):
         detect_targets(img, cam, photometric="sometimes")
 
 
+def test_auto_refines_where_the_edges_fall_short(rng):
+    """"auto" keeps the edges' pose of a near, saturated target whose edges are certain enough
+    (range sd <= refine_range_sd of the range, orientation sd <= refine_alpha_sd), which
+    "clipped" refines; with thresholds at zero every target falls short and "auto" refines it as
+    "all" does, with the thresholds out of reach never."""
+    cam = Camera.thesis(16.0)
+    pose = TargetPose(2.5, 0.05, 25 * DEG, 0.0)
+    img = render_frame(cam, pose, lighting="saturated", blur=0.5, noise=1.0, background=0.5, rng=rng)
+    off = detect_targets(img, cam, photometric="off")[0]
+    assert math.sqrt(off.covariance[0, 0]) < 0.005 * off.distance and math.sqrt(off.covariance[2, 2]) < 1 * DEG
+    auto = detect_targets(img, cam)[0]
+    assert (auto.distance, auto.alpha) == (off.distance, off.alpha)
+    clipped = detect_targets(img, cam, photometric="clipped")[0]
+    assert clipped.distance != off.distance
+    eager = detect_targets(img, cam, refine_range_sd=0.0, refine_alpha_sd=0.0)[0]
+    every = detect_targets(img, cam, photometric="all")[0]
+    assert (eager.distance, eager.alpha) == (every.distance, every.alpha) != (off.distance, off.alpha)
+    never = detect_targets(img, cam, refine_range_sd=1.0, refine_alpha_sd=math.pi)[0]
+    assert (never.distance, never.alpha) == (off.distance, off.alpha)
+    with pytest.raises(ValueError, match="refine_range_sd"):
+        detect_targets(img, cam, refine_range_sd=-0.1)
+
+
 def test_auto_refines_dim_frontal_target():
     """A dim, near-frontal negative target 64 rows tall (50 mm, 8.5 m): the edge-based orientation
     is uncertain (sd ~1.5 deg) and was 3.6 deg off on this frame in the accuracy sweep; the
