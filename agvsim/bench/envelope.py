@@ -35,6 +35,7 @@ import numpy as np
 from agvsim.bench.envelope_conditions import (ALPHA_MIN_ROWS, CHI2_3D_3SIGMA, FLOORS, GATE_BETA,
                                               GATE_DISTANCE, NAMES, SPEED_SIZE, parse_conditions)
 from agvsim.bench.floors import floor_line, verdict
+from agvsim.bench.peers import APRILTAG_INSTALL, one_opencv_thread, peer_detectors
 from agvsim.commands._args import number
 
 #: frame indices kept per condition for the report (missed, falsely detected, worst)
@@ -214,22 +215,15 @@ def _progress(text: str) -> None:
 
 
 def run(args) -> dict:
-    """The benchmark's JSON-ready result (one thread for OpenCV while it runs, as for every contender)."""
-    import cv2
-
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)  # one thread for every contender (OpenCV would spread ArUco over the cores)
-    try:
+    """The benchmark's JSON-ready result (OpenCV on one thread while it runs, as every contender)."""
+    with one_opencv_thread():
         return _run(args)
-    finally:
-        cv2.setNumThreads(threads)
 
 
 def _run(args) -> dict:
     from localizer import detect_targets
 
     from agvsim.bench.envelope_frames import MARKER_SIDE, camera_for, expose_frame, render_scene
-    from agvsim.bench.peers import APRILTAG_INSTALL, peer_detectors
 
     conditions = parse_conditions(args.conditions)
     sizes: dict[tuple[int, int], list] = {}

@@ -24,7 +24,7 @@ import time
 
 from agvsim.commands._args import number
 from agvsim.bench.floors import floor_line, verdict
-from agvsim.bench.peers import APRILTAG_INSTALL, marker_images, peer_detectors
+from agvsim.bench.peers import APRILTAG_INSTALL, marker_images, one_opencv_thread, peer_detectors
 
 #: the floor on a blank frame (nothing to find), ms per call of the default localizer
 FLOOR_BLANK_MS = 5.0
@@ -103,14 +103,9 @@ def _time_interleaved(fns: dict, frames, repeats) -> dict:
 
 
 def run(args) -> dict:
-    import cv2
-
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)  # one thread for every contender (OpenCV would spread ArUco over the cores)
-    try:
+    """The benchmark's JSON-ready result (OpenCV on one thread while it runs, as every contender)."""
+    with one_opencv_thread():
         return _run(args)
-    finally:
-        cv2.setNumThreads(threads)
 
 
 def _run(args) -> dict:

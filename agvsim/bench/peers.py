@@ -11,7 +11,9 @@ AprilTag 3 is optional (``pip install pupil-apriltags``, or ``make bench``): wit
 """
 from __future__ import annotations
 
-__all__ = ["APRILTAG_INSTALL", "MARKER_NAMES", "marker_images", "peer_detectors"]
+import contextlib
+
+__all__ = ["APRILTAG_INSTALL", "MARKER_NAMES", "marker_images", "one_opencv_thread", "peer_detectors"]
 
 #: how to get the AprilTag contender when it is missing
 APRILTAG_INSTALL = "pip install pupil-apriltags (or make bench)"
@@ -21,6 +23,20 @@ MARKER_NAMES = ("aruco", "apriltag")
 #: the one pupil_apriltags Detector of the process: destroying one can segfault
 #: (pupil-labs/apriltags#46), so it is created once and kept until exit.
 _APRILTAG_DETECTOR: list = []
+
+
+@contextlib.contextmanager
+def one_opencv_thread():
+    """OpenCV on one thread while the block runs (as every contender: OpenCV would spread ArUco
+    over the cores), its thread count restored after."""
+    import cv2
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def marker_images() -> dict:
