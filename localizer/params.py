@@ -106,11 +106,14 @@ class DetectorParams:
     # blurred targets; a saturated one from several starts); "clipped" every target whose bright
     # side is clipped (saturated light, where edges measured one at a time lose up to ~0.6 px
     # each) and no other; "all" every target; "off" none. Costs ~0.3-1 ms per refined target (up
-    # to ~3 ms for a saturated one that falls short). The thresholds keep the edges' answer
-    # where its 3 sd is within 1.5 % of the range and 3 deg (BENCHMARKS.md: the speed each costs)
+    # to ~3 ms for a saturated one that falls short). The thresholds: of 7,792 targets of the
+    # envelope benchmark's 512 x 480 frames (seeds 0 and 1, 9 and 17 conditions), the 7,495
+    # under both were at most 1.49 % off in range and 1.83 deg in orientation (bars of 60 rows or
+    # more) from their edges alone (the floors: 2 % and 3 deg); they refine 24-30 % of blur3's
+    # targets (sd 3 px), 5-8 % of saturated ones (BENCHMARKS.md: the speed and accuracy each costs)
     photometric: str = "auto"
-    refine_range_sd: float = 0.005  # share of the range ("auto": refine above it)
-    refine_alpha_sd: float = math.radians(1.0)  # rad ("auto": refine above it)
+    refine_range_sd: float = 0.008  # share of the range ("auto": refine above it)
+    refine_alpha_sd: float = math.radians(2.0)  # rad ("auto": refine above it)
     # --- the camera's response (grey level against light), for the edges and the refinement:
     # "linear" (machine-vision and raw frames: the pixels as they are); "srgb" (most USB, phone
     # and web cameras encode their frames with the sRGB curve: each target's pixels are
