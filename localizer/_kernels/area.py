@@ -5,8 +5,12 @@ each aligned 2 x 2 block, rounded to 8 bits, once (:func:`area_half`) or twice i
 The values are OpenCV's (``cv2.resize`` with ``INTER_AREA`` by exactly one half, its fast path
 for 8 bits): ``(a + b + c + d + 2) >> 2`` per 2 x 2 block; :func:`area_quarter` is two such
 halvings, the first one's rounding kept, without writing the intermediate level (a 2448 x 2048
-frame to 612 x 512 in ~0.21 ms when the frame is in the cache, against ~0.32 ms for two
-``cv2.resize`` calls; both read the frame's 5 MB once, the rest is arithmetic).
+frame to 612 x 512 in ~0.25 ms when the frame is in the cache, against ~0.32 ms for two
+``cv2.resize`` calls; both read the frame's 5 MB once, the rest is arithmetic). While a row of
+the level is computed, the image rows of the next one are prefetched
+(:func:`localizer._jit.prefetch`): a frame in memory rather than in the cache (as a camera's
+driver leaves it) then takes ~0.49 ms instead of ~0.67 (one core of the 2-vCPU machine of
+BENCHMARKS.md); a 1920 x 1200 frame halved ~0.21 ms instead of ~0.27.
 
 Both read a window of a C-contiguous ``(H, W)`` uint8 image starting at row ``y0``, column
 ``x0`` (a crop is not copied first) and fill ``out`` ``(h, w)`` uint8: level pixel ``(i, j)``
@@ -21,7 +25,7 @@ from localizer._jit import jit, prefetch
 
 __all__ = ["LINE", "area_half", "area_quarter"]
 
-#: bytes of a cache line (x86-64, most ARM cores): the stride of :func:`area_quarter`'s prefetches
+#: bytes of a cache line (x86-64, most ARM cores): the stride of the kernels' prefetches
 LINE = 64
 
 
@@ -32,7 +36,14 @@ def area_half(image, y0, x0, out):
     ``y0 + 2 h <= H``, ``x0 + 2 w <= W``."""
     h, w = out.shape
     two = np.uint16(2)
+    flat = image.reshape(image.size)
+    stride = image.shape[1]
     for y in range(h):
+        if y + 1 < h:  # the next output row's two image rows, a cache line at a time
+            start = (y0 + 2 * y + 2) * stride + x0
+            for r in range(2):
+                for i in range(start + r * stride, start + r * stride + 2 * w, LINE):
+                    prefetch(flat, i)
         r0 = image[y0 + 2 * y, x0:]
         r1 = image[y0 + 2 * y + 1, x0:]
         o = out[y]
