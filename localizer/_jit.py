@@ -45,7 +45,7 @@ import numba.extending
 
 from localizer._numba_inline import linear_inline_copies
 
-__all__ = ["COMPILE_NOTICE", "CompileCounter", "borrowed", "fast_inline", "fast_jit", "inline", "jit", "quiet_compile_notice"]
+__all__ = ["COMPILE_NOTICE", "CompileCounter", "borrowed", "fast_inline", "fast_jit", "inline", "jit", "prefetch", "quiet_compile_notice"]
 
 # numba copies an inlined helper's IR in time quadratic in its size (localizer._numba_inline):
 # made linear before any kernel is compiled
@@ -103,6 +103,42 @@ def borrowed(typingctx, x):
         return strip(signature.args[0], args[0])
 
     return x(x), codegen
+
+
+# ------------------------------------------------------------------ prefetch
+@numba.extending.intrinsic
+def prefetch(typingctx, a, i):
+    """Ask the processor to load the cache line of ``a[i]`` (``a`` a 1-D C-contiguous array, ``i``
+    an integer; LLVM's ``llvm.prefetch``: a read, into every cache level). A hint only: nothing
+    is read into a variable, an address outside ``a`` does not fault, the results are unchanged.
+
+    For a kernel that streams through a frame larger than the caches (a camera's frame written by
+    its driver is in memory, not in a cache): the hardware's prefetchers follow a few sequential
+    streams but keep too few lines in flight to reach the memory's bandwidth from one core;
+    asking for the next rows' lines while this row is computed does (``area_quarter``: a
+    2448 x 2048 frame from memory in 0.49 ms instead of 0.64, 0.04 ms more when it is in the cache).
+    """
+    if not (isinstance(a, numba.types.Array) and a.ndim == 1 and a.layout == "C"
+            and isinstance(i, numba.types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        from llvmlite import ir
+        from numba.core import cgutils
+
+        aty = signature.args[0]
+        ary = context.make_array(aty)(context, builder, value=args[0])
+        index = context.cast(builder, args[1], signature.args[1], numba.types.intp)
+        ptr = cgutils.get_item_pointer(context, builder, aty, ary, [index])
+        ptr = builder.bitcast(ptr, ir.IntType(8).as_pointer())
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
+        fn = builder.module.declare_intrinsic("llvm.prefetch", [ptr.type], fnty)
+        # (read, locality 3: keep in every level, data cache)
+        builder.call(fn, [ptr, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return numba.types.void(a, i), codegen
 
 
 # ------------------------------------------------------------------ first compilation

@@ -45,10 +45,23 @@ def thesis() -> None:
     detect_targets(image, camera, method="thesis")
 
 
+def pyramid() -> None:
+    """The area-averaged levels of large frames (:mod:`localizer._kernels.area`: both
+    halvings, read from a window of the frame)."""
+    import numpy as np
+
+    from localizer.pyramid import level_image
+
+    image = np.zeros((16, 16), np.uint8)
+    level_image(image, 2)
+    level_image(image, 4, (1, 1, 13, 13))
+
+
 #: the parts, by name: ``"module:function"`` (importable in a fresh process)
 PARTS: dict[str, str] = {
     "detector": "localizer.warmup:detector",
     "thesis": "localizer.warmup:thesis",
+    "pyramid": "localizer.warmup:pyramid",
 }
 
 

@@ -21,7 +21,8 @@ Modules, in pipeline order:
 * :mod:`.projection` -- where the target's edges and lines image;
 * :mod:`.exact_pose` -- the perspective-exact pose fit;
 * :mod:`.measure` -- subpixel edges, target test and exact pose fused in one call;
-* :mod:`.photometric` -- the whole-target photometric refinement.
+* :mod:`.photometric` -- the whole-target photometric refinement;
+* :mod:`.area` -- the area-averaged levels of a large frame (:mod:`localizer.pyramid`).
 
 and :mod:`.arrays`, the element-wise copies the kernels use instead of assigning an array to
 a slice (smaller compiled code: its docstring says why).

@@ -34,6 +34,41 @@ def test_level_image_is_the_block_mean():
         assert np.abs(lv.astype(float) - ref).max() <= 0.5 * math.log2(k) + 1e-9
 
 
+def _halvings(img, k):
+    """The reference level: ``img`` (whole blocks) halved ``log2 k`` times by ``cv2.resize`` (INTER_AREA)."""
+    import cv2
+
+    hh, ww = img.shape[0] // k, img.shape[1] // k
+    out = np.ascontiguousarray(img[:hh * k, :ww * k])
+    while k > 1:
+        out = cv2.resize(out, (out.shape[1] // 2, out.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        k //= 2
+    return out
+
+
+def test_level_image_equals_opencv_halvings_on_windows_of_any_size():
+    rng = np.random.default_rng(3)
+    for shape in [(2048, 2448), (103, 130), (37, 53), (9, 13), (4, 4)]:
+        img = rng.integers(0, 256, shape, dtype=np.uint8)
+        for k in (1, 2, 4, 8, 16):
+            if min(shape) < k:
+                continue
+            lv = level_image(img, k)
+            assert lv.dtype == np.uint8 and np.array_equal(lv, _halvings(img, k)), (shape, k)
+    for _ in range(200):  # windows at odd offsets, of odd sizes (a crop is read in place)
+        h, w = (int(v) for v in rng.integers(8, 120, 2))
+        img = rng.integers(0, 256, (h, w), dtype=np.uint8)
+        k = int(2 ** rng.integers(1, 5))
+        x0, y0 = int(rng.integers(0, w // 2)), int(rng.integers(0, h // 2))
+        x1, y1 = int(rng.integers(x0 + 1, w + 1)), int(rng.integers(y0 + 1, h + 1))
+        if y1 - y0 < k or x1 - x0 < k:
+            continue
+        lv = level_image(img, k, (x0, y0, x1, y1))
+        assert lv.flags.c_contiguous and np.array_equal(lv, _halvings(img[y0:y1, x0:x1], k)), (h, w, k, x0, y0, x1, y1)
+    view = rng.integers(0, 256, (64, 80), dtype=np.uint8)[::2, 1::2]  # not contiguous: copied first
+    assert np.array_equal(level_image(view, 4), _halvings(view, 4))
+
+
 def _pyramid(img, cam):
     p = dataclasses.asdict(DetectorParams(pyramid=False).resolved(cam.height, cam.width))
     return detect_pyramid(detect_targets, img, cam, p)
