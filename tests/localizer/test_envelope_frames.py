@@ -14,7 +14,7 @@ from agvsim.bench.envelope_conditions import NAMES, parse_conditions
 from agvsim.bench.envelope_frames import (Radiance, bar_rows, camera_for, expose_frame, make_frame, render_radiance,
                                           render_scene, sample_scene, scene_rng)
 from agvsim.bench.envelope_sensor import FrameSettings, psf_kernel, srgb_encode, vignetting
-from agvsim.bench.peers import peer_detectors
+from agvsim.bench.peers import peer_detectors, silent_c_stderr
 from agvsim.bench.envelope_frames import MARKER_SIDE
 from localizer import Camera, TargetPose, TargetSpec, detect_targets
 
@@ -187,6 +187,17 @@ def test_a_run_with_peers_reports_their_times_and_the_ratio_floor():
     assert result["floors"]["peer_ratio"]["met"] == (ratio >= 10.0)
     text = envelope.format_table({"machine": {}, **result, "seconds": 1.0})
     assert "peers on the same frames" in text and "aruco" in text
+
+
+def test_a_peers_c_level_stderr_is_silenced_and_restored(capfd):
+    import os
+    import sys
+
+    with silent_c_stderr():
+        os.write(2, b"Error, more than one new minima found.\n")  # as AprilTag's C code writes it
+    os.write(2, b"after\n")
+    print("python stderr", file=sys.stderr)
+    assert capfd.readouterr().err == "after\npython stderr\n"
 
 
 def test_conditions_parse_from_the_one_list():
