@@ -32,6 +32,14 @@ import numpy as np
 from localizer._kernels.records import Intrinsics, as_record
 from localizer.numeric import check_number
 
+
+@functools.lru_cache(maxsize=64)
+def _intrinsics_record(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """``(1,)`` :data:`~localizer._kernels.records.INTRINSICS` record of these intrinsics (px;
+    cached: the caller must not change it)."""
+    return as_record(Intrinsics(fx, fy, cx, cy))
+
+
 #: Thesis camera (Pulnix TM-450): sensor 8.8 x 6.6 mm imaged on 512 x 480 pixels.
 THESIS_SENSOR_MM = (8.8, 6.6)
 THESIS_SIZE_PX = (512, 480)
@@ -189,11 +197,13 @@ class Camera:
         """``(fx, fy, cx, cy)`` (px) as the compiled kernels take them (computed once)."""
         return Intrinsics(self.fx, self.fy, self.cx, self.cy)
 
-    @functools.cached_property
+    @property
     def intrinsics_record(self) -> np.ndarray:
         """:attr:`intrinsics` as a ``(1,)`` record array, the form of the per-frame kernels'
-        arguments (computed once; do not change it)."""
-        return as_record(self.intrinsics)
+        arguments (shared by every camera of the same intrinsics: do not change it). Cached by
+        value, not per camera: a program that makes a camera per frame (or a crop's camera per
+        target, :meth:`cropped`) would otherwise build it in every call (~40 us cold)."""
+        return _intrinsics_record(self.fx, self.fy, self.cx, self.cy)
 
     def scaled(self, width: int, height: int) -> "Camera":
         """The same optics imaged on ``width x height`` pixels (intrinsics scaled)."""

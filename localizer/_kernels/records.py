@@ -316,8 +316,6 @@ _DTYPES = {SearchSettings: SEARCH_SETTINGS, ExactSettings: EXACT_SETTINGS, Intri
 def as_record(values: NamedTuple) -> np.ndarray:
     """``(1,)`` record array of the named tuple ``values`` (one of the settings classes
     above), fields by name."""
-    dtype = _DTYPES[type(values)]
-    out = np.zeros(1, dtype)
-    for name in values._fields:
-        out[0][name] = getattr(values, name)
-    return out
+    # the dtype's fields are the class's, in its order (record_dtype): built from the tuple at
+    # once (~1.5 us; a field at a time, ~4 us warm and tens cold, showed in every frame's call)
+    return np.array([tuple(values)], _DTYPES[type(values)])

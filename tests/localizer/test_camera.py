@@ -67,3 +67,25 @@ def test_cropped_is_the_checked_camera_of_the_crop():
             assert got == want and type(got.cx) is float and type(got.width) is int
     with pytest.raises(ValueError, match="Camera.width"):
         cams[0].cropped(10, 10, 17, 40)  # 7 px: what the checks refuse is still refused
+
+
+def test_kernel_records_hold_every_field_by_name():
+    # as_record builds a record from the tuple at once: each field must land under its own name
+    from localizer._kernels.records import (ExactSettings, Intrinsics, SearchSettings, TargetConstants,
+                                            as_record)
+
+    for cls in (Intrinsics, TargetConstants, ExactSettings, SearchSettings):
+        kinds = {n: getattr(k, "__forward_arg__", k) for n, k in cls.__annotations__.items()}
+        sample = {n: (True if "bool" in str(k) else 3 + i if "int" in str(k) else 0.5 + i)
+                  for i, (n, k) in enumerate(kinds.items())}
+        rec = as_record(cls(**sample))
+        assert rec.shape == (1,) and rec.dtype.names == cls._fields
+        assert {n: rec[0][n].item() for n in cls._fields} == sample
+
+
+def test_cameras_of_the_same_intrinsics_share_one_record():
+    a, b = Camera.thesis(16.0), Camera.thesis(16.0)
+    assert a is not b and a.intrinsics_record is b.intrinsics_record
+    assert a.intrinsics_record[0].tolist() == (a.fx, a.fy, a.cx, a.cy)
+    crop = a.cropped(10, 20, 110, 120)
+    assert crop.intrinsics_record[0].tolist() == (a.fx, a.fy, a.cx - 10, a.cy - 20)
