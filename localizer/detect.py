@@ -227,7 +227,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     if view is None:
         edges, cxs, top, bot, est = _edges_pose(img, camera, target, v, floor, p)
         if (p.response == "auto" and est is not None and not clipped and est.edge_bias > 0.5 * ENCODED_SHIFT
-                and est.edge_bias > ENCODED_SHIFT * max(_blur_sd(img, v), 0.5)):
+                and est.edge_bias > ENCODED_SHIFT * max(_blur_sd(img, v, est), 0.5)):
             view = _linear_view(img, camera, v)
             found = _edges_pose(view[0], view[1], target, view[2], floor, p)
             if found[4] is None:  # the encoded edges made a target, the linear ones do not: keep them
@@ -241,7 +241,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
         img, camera, v = view[0], view[1], view[2]
     if est is None:
         return edges, cxs, top, bot, None
-    blur = _blur_sd(img, v)
+    blur = _blur_sd(img, v, est)
     if not clipped and abs(est.edge_bias) > MAX_SHIFT_SHARE * max(blur, 0.5):
         return edges, cxs, top, bot, None  # bars and gap of unequal widths: not a target
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
@@ -304,9 +304,12 @@ def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) ->
                         float(p.width_slack), float(p.min_rows))
 
 
-def _blur_sd(img: np.ndarray, v) -> float:
+def _blur_sd(img: np.ndarray, v, est=None) -> float:
     """The blur sd (px) of the verified stack ``v``'s row-mean profile on the rows its vertical
-    edges are measured on (:func:`localizer._kernels.subpixel.rows_blur`)."""
+    edges are measured on (:func:`localizer._kernels.subpixel.rows_blur`): ``est.blur`` when its
+    pose ``est`` (measured on ``img``) carries it (:func:`localizer.exact_pose.exact_measure`)."""
+    if est is not None and not math.isnan(est.blur):
+        return est.blur
     bounds = np.asarray(v.bounds, np.float64)
     return float(rows_blur(img, edge_rows(img, v.rows, bounds), bounds))
 

@@ -81,11 +81,11 @@ def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sig
                                                                  float(width_tolerance), float(width_slack),
                                                                  float(min_rows)))
     (found, e0, e1, e2, e3, cx1, cx2, t1, t2, b1, b2, d, beta, alpha, z, x, height, bias, a1, a2, nsols, chi2,
-     cov), = r.tolist()
+     blur, cov), = r.tolist()
     est = None
     if found:
         est = PoseEstimate(d, beta, alpha, z, x, height, cov, (a1, a2), nsols > 1, bias,
-                           math.sqrt(chi2 / 3.0))  # 8 measurements, 5 unknowns
+                           math.sqrt(chi2 / 3.0), blur)  # 8 measurements, 5 unknowns
     return (e0, e1, e2, e3), (cx1, cx2), (t1, t2), (b1, b2), est
 
 

@@ -29,3 +29,4 @@ class PoseEstimate:
     ambiguous: bool  # both roots were legitimate (§4.2.2)
     edge_bias: float = 0.0  # px, common shift of every edge towards its dark side
     rms: float = float("nan")  # normalised fit residual (exact only)
+    blur: float = float("nan")  # px, the row-mean blur sd the edges were measured at (exact_measure only)

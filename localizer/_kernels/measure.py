@@ -17,7 +17,7 @@ import numpy as np
 from localizer._jit import jit
 from localizer._kernels.exact_pose import fit
 from localizer._kernels.records import EXACT_RESULT, FitStatus, Intrinsics, TargetConstants
-from localizer._kernels.subpixel import blur_floor, edge_rows, subpixel
+from localizer._kernels.subpixel import blur_floor, edge_rows, rows_blur, subpixel
 from localizer._kernels.target_test import makes_target
 
 
@@ -46,13 +46,15 @@ def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, set
     e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
     rows = edge_rows(image, stack_rows, bounds)
     m, _, _, _ = subpixel(image, rows, bounds, e, positive)
-    floor = blur_floor(image, rows, bounds, st.sigma_floor)
+    blur = rows_blur(image, rows, bounds)
+    floor = blur_floor(blur, bounds, st.sigma_floor)
     edges, top, bot = m.edges, m.top, m.bottom
     out = np.zeros(1, EXACT_RESULT)
     r = out[0]
     r.edge0, r.edge1, r.edge2, r.edge3 = edges[0], edges[1], edges[2], edges[3]
     r.bar_cx1, r.bar_cx2 = m.bar_cx[0], m.bar_cx[1]
     r.top1, r.top2, r.bottom1, r.bottom2 = top[0], top[1], bot[0], bot[1]
+    r.blur = blur
     for k in range(3):
         r.cov[k, k] = 1.0
     if not makes_target(edges[0], edges[1], edges[2], edges[3], bot[0] - top[0], bot[1] - top[1],

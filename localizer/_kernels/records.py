@@ -248,6 +248,7 @@ EXACT_RESULT = np.dtype([
     ("distance", np.float64), ("beta", np.float64), ("alpha", np.float64), ("z", np.float64), ("x", np.float64),
     ("height", np.float64), ("edge_bias", np.float64), ("alpha1", np.float64), ("alpha2", np.float64),
     ("n_solutions", np.int64), ("chi2", np.float64),
+    ("blur", np.float64),  # px, the row-mean profile's blur sd on the rows the edges are measured on
     ("cov", np.float64, (3, 3)),
 ])
 

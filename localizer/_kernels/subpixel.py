@@ -59,13 +59,13 @@ NARROW_RUNS = 1.8
 
 
 @jit
-def blur_floor(image, rows, bounds, floor):
-    """The per-edge error floor (px) of a stack measured on ``rows`` (n,) with run boundaries
-    ``bounds`` (4,): ``floor``, or on a blurred target (:func:`rows_blur` at least
-    :data:`~localizer._kernels.clipped.SIGMA_BLURRED`) ``hypot(floor, BLUR_EDGE_SIGMA sd (1 +
-    (2 sd / w)^2))`` with ``w`` the narrowest of its three runs (px): where the blur is as wide as
-    a bar, the edges of the bar and of the gap next to it are measured from their blurred sum."""
-    s = rows_blur(image, rows, bounds)
+def blur_floor(s, bounds, floor):
+    """The per-edge error floor (px) of a stack of row-mean blur sd ``s`` (px, :func:`rows_blur`
+    on the rows its edges are measured on) and run boundaries ``bounds`` (4,): ``floor``, or on a
+    blurred target (``s`` at least :data:`~localizer._kernels.clipped.SIGMA_BLURRED`)
+    ``hypot(floor, BLUR_EDGE_SIGMA sd (1 + (2 sd / w)^2))`` with ``w`` the narrowest of its three
+    runs (px): where the blur is as wide as a bar, the edges of the bar and of the gap next to it
+    are measured from their blurred sum."""
     wm = (bounds[3] - bounds[0]) / 3.0
     if s >= NARROW_SHARE * wm:  # the profile cannot tell the blur: the largest it may be
         s = max(s, wm / NARROW_RUNS)

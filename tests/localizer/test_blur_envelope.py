@@ -98,7 +98,7 @@ def test_narrow_runs_blur_floor_takes_the_largest_blur_the_profile_allows(u):
     est = rows_blur(img, rows, bounds)
     assert est == pytest.approx(0.25 * w, rel=0.12) and (u >= 3.0 or est < 0.8 * s)
     big = max(s, w / NARROW_RUNS)
-    assert blur_floor(img, rows, bounds, 0.05) >= math.hypot(0.05, BLUR_EDGE_SIGMA * big * (1 + (2 * big / w) ** 2)) - 1e-9
+    assert blur_floor(est, bounds, 0.05) >= math.hypot(0.05, BLUR_EDGE_SIGMA * big * (1 + (2 * big / w) ** 2)) - 1e-9
 
 
 @njit
@@ -161,3 +161,23 @@ def test_vignetted_near_targets_are_found(index):
     fr = _envelope_frame("vignette", index)
     pose = fr.scene.pose
     assert any(abs(o.beta - pose.beta) < 0.02 for o in detect_targets(fr.image, fr.camera))
+
+
+@pytest.mark.parametrize("blur", [0.5, 2.5])
+def test_the_exact_measurement_reports_the_blur_it_was_measured_at(blur):
+    # the blur sd the compiled measurement returns is the row-mean profile's on the rows its edges
+    # are measured on: what detect_targets' checks would otherwise compute again
+    from localizer._kernels.subpixel import edge_rows
+    from localizer.exact_pose import exact_measure
+    from localizer.params import DetectionStats, DetectorParams
+    from localizer.recognize import find_stacks
+    from localizer.target import TargetSpec
+
+    pose, img = next(_frames(CAMERA, blur, 1, 3))
+    p = DetectorParams().resolved(*img.shape)
+    verified = find_stacks(img, CAMERA, TargetSpec(), p, DetectionStats())[1]
+    assert verified
+    est = exact_measure(img, CAMERA, TargetSpec(), verified[0], 0.05, p.width_tolerance, p.width_slack, p.min_rows)[4]
+    v = verified[0]
+    bounds = np.asarray(v.bounds, np.float64)
+    assert est is not None and est.blur == rows_blur(img, edge_rows(img, v.rows, bounds), bounds) > 0.3 * blur
