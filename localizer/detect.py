@@ -13,7 +13,7 @@ from localizer._kernels.clipped import SIGMA_BLURRED
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
-from localizer.exact_pose import exact_measure, exact_pose
+from localizer.exact_pose import exact_measure, exact_measure_lut, exact_pose
 from localizer.numeric import check_choice
 from localizer.observation import ImageMeasurements, TargetObservation
 from localizer.params import METHODS, DetectionStats, DetectorParams
@@ -223,22 +223,27 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
     # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
     floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
-    view = _linear_view(img, camera, v) if p.response == "srgb" else None
-    if view is None:
+    view = None  # a linearized measurement: (window, box, its camera and stack or None)
+    if p.response == "srgb":
+        found, *view = _linear_edges_pose(img, camera, target, v, floor, p)
+    else:
         edges, cxs, top, bot, est = _edges_pose(img, camera, target, v, floor, p)
         if (p.response == "auto" and est is not None and not clipped and est.edge_bias > 0.5 * ENCODED_SHIFT
                 and est.edge_bias > ENCODED_SHIFT * max(_blur_sd(img, v, est), 0.5)):
-            view = _linear_view(img, camera, v)
-            found = _edges_pose(view[0], view[1], target, view[2], floor, p)
+            found, *view = _linear_edges_pose(img, camera, target, v, floor, p)
             if found[4] is None:  # the encoded edges made a target, the linear ones do not: keep them
                 view = None
-    else:
-        found = _edges_pose(view[0], view[1], target, view[2], floor, p)
+    pending = None  # the frame's camera, stack and window box, for the window's camera and stack when needed
     if view is not None:
-        c0, r0 = view[3]
+        window, box, parts = view
+        r0, c0 = box[0], box[2]
         edges, cxs = tuple(x + c0 for x in found[0]), tuple(x + c0 for x in found[1])
         top, bot, est = tuple(y + r0 for y in found[2]), tuple(y + r0 for y in found[3]), found[4]
-        img, camera, v = view[0], view[1], view[2]
+        img = window
+        if parts is not None:
+            camera, v = parts
+        else:
+            pending = (camera, v, box)
     if est is None:
         return edges, cxs, top, bot, None
     blur = _blur_sd(img, v, est)
@@ -250,6 +255,8 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
         uncertain = bool(abs(c[2, 2]) > p.refine_alpha_sd ** 2 or abs(c[0, 0]) > (p.refine_range_sd * est.distance) ** 2)
         if p.photometric == "all" or (p.photometric == "clipped" and saturated) or (p.photometric == "auto" and uncertain):
             # an uncertain saturated pose may be off by more than the fit's basin: several starts
+            if pending is not None:
+                camera, v = _window_parts(*pending)
             est = _photometric(img, camera, target, v, est, uncertain and saturated, blur)
     if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
             and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
@@ -269,13 +276,29 @@ def _edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: f
     return exact_measure(img, camera, target, v, floor, p.width_tolerance, p.width_slack, p.min_rows)
 
 
-def _linear_view(img: np.ndarray, camera: Camera, v):
-    """The neighbourhood of the verified stack ``v`` (the bars, their margins and the blur's reach)
-    linearized through the sRGB inverse: ``(crop, camera, stack, (c0, r0))``: the crop, its
-    camera (the principal point moved by the crop's first column ``c0`` and row ``r0``), and
-    ``v`` in the crop's pixels with its grey levels linearized."""
-    import cv2
+def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: float, p: DetectorParams):
+    """:func:`_edges_pose` of the verified stack ``v`` on its neighbourhood (:func:`_linear_box`)
+    linearized through the sRGB inverse (:data:`SRGB_TO_LINEAR`). Returns ``(found, window, box,
+    parts)``: ``found`` as :func:`_edges_pose`'s in the window's pixels, the uint8 window, its box
+    ``(r0, r1, c0, c1)`` in the frame, and the window's camera and stack (:func:`_window_parts`)
+    when they were made (a distorted camera's edges are measured in Python), else None (an
+    undistorted camera's: the window made and measured in one compiled call,
+    :func:`localizer.exact_pose.exact_measure_lut`)."""
+    box = _linear_box(img, v)
+    if camera.has_distortion:
+        import cv2
 
+        window = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR)
+        cam, lv = _window_parts(camera, v, box)
+        return _edges_pose(window, cam, target, lv, floor, p), window, box, (cam, lv)
+    *found, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, camera, target, v, floor, p.width_tolerance,
+                                       p.width_slack, p.min_rows)
+    return tuple(found), window, box, None
+
+
+def _linear_box(img: np.ndarray, v) -> tuple[int, int, int, int]:
+    """``(r0, r1, c0, c1)``: the neighbourhood of the verified stack ``v`` (the bars, their margins
+    and the blur's reach; rows ``r0:r1``, columns ``c0:c1`` of ``img``) that is linearized."""
     h, w = img.shape
     (t0, b0), (t1, b1) = v.ends
     xb = v.bounds
@@ -283,12 +306,19 @@ def _linear_view(img: np.ndarray, camera: Camera, v):
     pad_c = int(xb[3] - xb[0]) // 2 + 12
     r0, r1 = max(0, int(min(t0, t1)) - pad_r), min(h, int(max(b0, b1)) + pad_r + 1)
     c0, c1 = max(0, int(xb[0]) - pad_c), min(w, int(xb[3]) + pad_c + 1)
-    crop = cv2.LUT(img[r0:r1, c0:c1], SRGB_TO_LINEAR)
+    return r0, r1, c0, c1
+
+
+def _window_parts(camera: Camera, v, box: tuple[int, int, int, int]):
+    """``(camera, stack)`` of the linearized window ``box = (r0, r1, c0, c1)`` of a frame
+    (:func:`_linear_box`): ``camera`` with its principal point moved by the window's first column
+    ``c0`` and row ``r0``, and ``v`` in the window's pixels with its grey levels linearized."""
+    r0, r1, c0, c1 = box
     cam = camera.cropped(c0, r0, c1, r1)
     lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((int(a) - r0, int(b) - r0) for a, b in v.ends),
                              median_x=None if v.median_x is None else v.median_x - c0,
                              dark=_linear_grey(v.dark), bright=_linear_grey(v.bright))
-    return crop, cam, lv, (c0, r0)
+    return cam, lv
 
 
 def _linear_grey(g: float) -> float:

@@ -19,7 +19,7 @@ from localizer.edges import EdgeMeasurements
 from localizer.pose import PoseEstimate
 from localizer.target import TargetSpec
 
-__all__ = ["alpha_a14", "exact_measure", "exact_pose"]
+__all__ = ["alpha_a14", "exact_measure", "exact_measure_lut", "exact_pose"]
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -76,10 +76,29 @@ def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sig
     and the :class:`PoseEstimate` (None when the edges do not make a target or the fit
     fails).
     """
-    r = measure.exact_measure(image, st.rows, st.bounds, st.ends, bool(st.positive), camera.intrinsics_record,
-                              target.constants_record, _settings(float(sigma_floor), int(iterations),
-                                                                 float(width_tolerance), float(width_slack),
-                                                                 float(min_rows)))
+    return _unpack(measure.exact_measure(image, st.rows, st.bounds, st.ends, bool(st.positive),
+                                         camera.intrinsics_record, target.constants_record,
+                                         _settings(float(sigma_floor), int(iterations), float(width_tolerance),
+                                                   float(width_slack), float(min_rows))))
+
+
+def exact_measure_lut(image: np.ndarray, lut: np.ndarray, box: tuple[int, int, int, int], camera: Camera,
+                      target: TargetSpec, st, sigma_floor: float, width_tolerance: float, width_slack: float,
+                      min_rows: float, iterations: int = 8):
+    """:func:`exact_measure` of the window ``box = (r0, r1, c0, c1)`` of ``image`` (rows ``r0:r1``,
+    columns ``c0:c1``) with its grey levels passed through ``lut`` ``(256,)`` uint8, in one
+    compiled call (:func:`localizer._kernels.measure.exact_measure_lut`; ``st`` in the frame's
+    pixels). Returns ``(edges, bar_cx, top, bottom, pose, window)``: as :func:`exact_measure`'s,
+    in the window's pixels, and the ``(r1 - r0, c1 - c0)`` uint8 window measured."""
+    r, window = measure.exact_measure_lut(image, lut, box, st.rows, st.bounds, st.ends, bool(st.positive),
+                                          camera.intrinsics_record, target.constants_record,
+                                          _settings(float(sigma_floor), int(iterations), float(width_tolerance),
+                                                    float(width_slack), float(min_rows)))
+    return (*_unpack(r), window)
+
+
+def _unpack(r: np.ndarray):
+    """``(edges, bar_cx, top, bottom, pose)`` of an :data:`~localizer._kernels.records.EXACT_RESULT` record."""
     (found, e0, e1, e2, e3, cx1, cx2, t1, t2, b1, b2, d, beta, alpha, z, x, height, bias, a1, a2, nsols, chi2,
      blur, cov), = r.tolist()
     est = None

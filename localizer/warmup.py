@@ -29,12 +29,14 @@ def _frame():
 
 
 def detector() -> None:
-    """The edge-based (``"exact"``) detector and its photometric refinement."""
+    """The edge-based (``"exact"``) detector and its photometric refinement, on the frame's
+    pixels and on a target's neighbourhood linearized through the sRGB inverse."""
     from localizer.detect import detect_targets
 
     camera, image = _frame()
     detect_targets(image, camera)
     detect_targets(image, camera, photometric="all")
+    detect_targets(image, camera, response="srgb", photometric="all")
 
 
 def thesis() -> None:

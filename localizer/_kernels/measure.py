@@ -39,11 +39,43 @@ def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, set
     False when the edges do not make a target or no fit converged (the pose is then zeros
     and the covariance the identity); the edges (px) in either case.
     """
-    c, t, st = camera[0], target[0], settings[0]
-    cam = Intrinsics(c.fx, c.fy, c.cx, c.cy)
-    tc = TargetConstants(t.bar_width, t.bar_height, t.margin)
+    c, t = camera[0], target[0]
     e = np.empty((2, 2), np.int64)
     e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
+    return measure(image, stack_rows, bounds, e, positive, Intrinsics(c.fx, c.fy, c.cx, c.cy),
+                   TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
+
+
+@jit
+def exact_measure_lut(image, lut, box, stack_rows, bounds, ends, positive, camera, target, settings):
+    """:func:`exact_measure` of the window ``box = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns
+    ``c0:c1``) of ``image`` with every grey level passed through ``lut`` ``(256,)`` uint8 (the
+    sRGB inverse of :data:`localizer.detect.SRGB_TO_LINEAR`): the window's own camera (principal
+    point moved by ``(c0, r0)``) and the stack ``stack_rows``, ``bounds``, ``ends`` (frame
+    pixels) moved likewise, in one call (in Python the window, its camera and its stack cost
+    more than the measurement). Returns ``(result, window)``: the
+    :data:`~localizer._kernels.records.EXACT_RESULT` record, in the window's pixels, and the
+    ``(r1 - r0, c1 - c0)`` uint8 window it was measured on."""
+    r0, r1, c0, c1 = box
+    win = np.empty((r1 - r0, c1 - c0), np.uint8)
+    for i in range(r1 - r0):
+        src = image[r0 + i]
+        dst = win[i]
+        for j in range(c1 - c0):
+            dst[j] = lut[src[c0 + j]]
+    c, t = camera[0], target[0]
+    e = np.empty((2, 2), np.int64)
+    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0] - r0, ends[0][1] - r0, ends[1][0] - r0, ends[1][1] - r0
+    out = measure(win, stack_rows - r0, bounds - c0, e, positive, Intrinsics(c.fx, c.fy, c.cx - c0, c.cy - r0),
+                  TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
+    return out, win
+
+
+@jit
+def measure(image, stack_rows, bounds, e, positive, cam, tc, st):
+    """:func:`exact_measure`'s body: ``e`` ``(2, 2)`` int64 rough bar ends (rows), ``cam`` an
+    :class:`~localizer._kernels.records.Intrinsics`, ``tc`` a
+    :class:`~localizer._kernels.records.TargetConstants`, ``st`` the settings record's row."""
     rows = edge_rows(image, stack_rows, bounds)
     m, _, _, _ = subpixel(image, rows, bounds, e, positive)
     blur = rows_blur(image, rows, bounds)

@@ -126,3 +126,34 @@ def test_blurred_high_resolution_targets_are_found_and_measured(condition, index
     z, m2 = _errors(found[0], frame.scene.pose)
     assert abs(found[0].distance / frame.scene.pose.distance - 1.0) < 0.02
     assert z.max() <= 3.0 and m2 <= CHI2_3D_3SIGMA
+
+
+def test_the_compiled_linearized_window_is_the_python_one():
+    # exact_measure_lut makes the sRGB-linearized window, its camera and stack in the compiled call:
+    # the very numbers of the window cut, linearized (cv2.LUT) and measured from Python
+    import dataclasses
+
+    import cv2
+
+    from localizer.detect import SRGB_TO_LINEAR
+    from localizer.exact_pose import exact_measure, exact_measure_lut
+    from localizer.params import DetectionStats, DetectorParams
+    from localizer.recognize import find_stacks
+    from localizer.target import TargetSpec
+
+    frame = make_frame(BY_NAME["gamma"].settings, 0, 3)
+    img, cam, tg = frame.image, frame.camera, TargetSpec()
+    p = DetectorParams().resolved(*img.shape)
+    v = find_stacks(img, cam, tg, p, DetectionStats())[1][0]
+    r0, r1, c0, c1 = box = (int(v.rows[0]) - 20, int(v.rows[-1]) + 21, int(v.bounds[0]) - 15, int(v.bounds[3]) + 16)
+    args = (0.05, p.width_tolerance, p.width_slack, p.min_rows)
+    *compiled, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, cam, tg, v, *args)
+    by_hand = cv2.LUT(img[r0:r1, c0:c1], SRGB_TO_LINEAR)
+    lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((a - r0, b - r0) for a, b in v.ends),
+                             median_x=v.median_x - c0)
+    python = exact_measure(by_hand, cam.cropped(c0, r0, c1, r1), tg, lv, *args)
+    assert np.array_equal(window, by_hand)
+    assert compiled[:4] == list(python[:4]) and compiled[4] is not None
+    assert compiled[4].covariance.tolist() == python[4].covariance.tolist()
+    assert (compiled[4].distance, compiled[4].alpha, compiled[4].blur) == (python[4].distance, python[4].alpha,
+                                                                           python[4].blur)
