@@ -21,12 +21,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from localizer._jit import jit, prefetch
+from localizer._jit import inline, jit, prefetch
 
-__all__ = ["LINE", "area_half", "area_quarter"]
+__all__ = ["LINE", "area_half", "area_quarter", "prefetch_rows"]
 
 #: bytes of a cache line (x86-64, most ARM cores): the stride of the kernels' prefetches
 LINE = 64
+
+
+@inline
+def prefetch_rows(flat, start, stride, n, width):
+    """:func:`localizer._jit.prefetch` of ``n`` rows of ``width`` pixels of an image flattened to
+    ``flat`` (rows ``stride`` pixels apart), the first from index ``start``, a cache line at a time."""
+    for r in range(n):
+        for i in range(start + r * stride, start + r * stride + width, LINE):
+            prefetch(flat, i)
 
 
 @jit
@@ -39,11 +48,8 @@ def area_half(image, y0, x0, out):
     flat = image.reshape(image.size)
     stride = image.shape[1]
     for y in range(h):
-        if y + 1 < h:  # the next output row's two image rows, a cache line at a time
-            start = (y0 + 2 * y + 2) * stride + x0
-            for r in range(2):
-                for i in range(start + r * stride, start + r * stride + 2 * w, LINE):
-                    prefetch(flat, i)
+        if y + 1 < h:  # the next output row's two image rows
+            prefetch_rows(flat, (y0 + 2 * y + 2) * stride + x0, stride, 2, 2 * w)
         r0 = image[y0 + 2 * y, x0:]
         r1 = image[y0 + 2 * y + 1, x0:]
         o = out[y]
@@ -68,11 +74,8 @@ def area_quarter(image, y0, x0, out):
     flat = image.reshape(image.size)
     stride = image.shape[1]
     for y in range(h):
-        if y + 1 < h:  # the next output row's four image rows, a cache line at a time
-            start = (y0 + 4 * y + 4) * stride + x0
-            for r in range(4):
-                for i in range(start + r * stride, start + r * stride + 4 * w, LINE):
-                    prefetch(flat, i)
+        if y + 1 < h:  # the next output row's four image rows
+            prefetch_rows(flat, (y0 + 4 * y + 4) * stride + x0, stride, 4, 4 * w)
         r0 = image[y0 + 4 * y, x0:]
         r1 = image[y0 + 4 * y + 1, x0:]
         r2 = image[y0 + 4 * y + 2, x0:]
