@@ -67,6 +67,9 @@ def as_gray(image, camera: Camera) -> np.ndarray:
     Raises ``ValueError`` naming what was expected: a non-empty uint8 array of
     shape ``(camera.height, camera.width)`` or ``(..., 3|4)`` channels (BGR/BGRA).
     """
+    if (type(image) is np.ndarray and image.dtype == np.uint8 and image.ndim == 2 and image.size
+            and image.shape == camera.shape and image.flags.c_contiguous):
+        return image  # the common case, at once
     if not isinstance(image, np.ndarray):
         raise ValueError(f"expected a numpy uint8 image array, got {type(image).__name__}")
     if image.size == 0:
@@ -136,15 +139,16 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
-    st = stats if stats is not None else DetectionStats()
+    st = stats  # None: no bookkeeping (a cold call's Python is a good share of its time)
     if p.pyramid and img.shape[0] >= 2 * LEVEL_ROWS and not p.debug_dir:
         # a large frame: searched on a coarse level, each target measured where its blur is 1-2 px
-        accepted, seconds = st.accepted, st.seconds
+        accepted, seconds = (st.accepted, st.seconds) if st is not None else (0, 0.0)
         out = detect_pyramid(functools.partial(detect_targets, target=target, method=method, stats=st), img, camera,
                              _level_params(p))
         out = _drop_shared_bars(out, st)
-        st.accepted = accepted + len(out)
-        st.seconds = seconds + time.perf_counter() - t0
+        if st is not None:
+            st.accepted = accepted + len(out)
+            st.seconds = seconds + time.perf_counter() - t0
         return out
     out: list[TargetObservation] = []
     stacks, verified = find_stacks(img, camera, target, p, st, keep_candidates=bool(p.debug_dir))
@@ -152,15 +156,16 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         try:
             obs = _measure(img, camera, target, v, method, p)
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
-            st.reject("pose")
-            continue
+            obs = None
         if obs is None:
-            st.reject("pose")
+            if st is not None:
+                st.reject("pose")
             continue
         out.append(obs)
     out = _drop_shared_bars(out, st)
-    st.accepted += len(out)
-    st.seconds += time.perf_counter() - t0
+    if st is not None:
+        st.accepted += len(out)
+        st.seconds += time.perf_counter() - t0
     if p.debug_dir:
         from localizer.annotation import write_debug_images
 
@@ -168,7 +173,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     return out
 
 
-def _drop_shared_bars(found: list[TargetObservation], st: DetectionStats) -> list[TargetObservation]:
+def _drop_shared_bars(found: list[TargetObservation], st: DetectionStats | None) -> list[TargetObservation]:
     """``found`` without every observation whose bars overlap another's (counted as
     ``st.rejected["shared_bars"]``).
 
@@ -196,7 +201,7 @@ def _drop_shared_bars(found: list[TargetObservation], st: DetectionStats) -> lis
     if not any(bad):
         return found
     for b in bad:
-        if b:
+        if b and st is not None:
             st.reject("shared_bars")
     return [o for o, b in zip(found, bad) if not b]
 

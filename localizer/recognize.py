@@ -79,7 +79,7 @@ class Stack:
 
 
 def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams,
-                stats: DetectionStats, keep_candidates: bool = True) -> tuple[list[Stack], list[Stack]]:
+                stats: DetectionStats | None, keep_candidates: bool = True) -> tuple[list[Stack], list[Stack]]:
     """Coarse scan every ``coarse_step``-th row, check the hits' grey levels, fine-scan
     around each plausible new hit and verify the stack found
     (:func:`localizer._kernels.verify.verify`).
@@ -89,17 +89,18 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
 
     Returns ``(candidates, verified)``: every stack found (only the verified ones unless
     ``keep_candidates``), and the verified ones (with grey levels and bar ends filled in)
-    top to bottom, left to right.
+    top to bottom, left to right. ``stats`` is filled in when given (None: no bookkeeping).
     """
     r = search.recognize(image, search_settings(p, camera.fx, camera.fy, target.bar_width, target.bar_height))
-    (rows_scanned, runs, seeds, candidates, rejected), = r.counts.tolist()
-    stats.rows_scanned += rows_scanned
-    stats.runs += runs
-    stats.seeds += seeds
-    stats.candidates += candidates
-    for key, k in zip(_REASON_KEYS, rejected.tolist()[1:]):  # REASONS: Reject 1, 2, ... in order
-        if k:
-            stats.rejected[key] = stats.rejected.get(key, 0) + k
+    if stats is not None:
+        (rows_scanned, runs, seeds, candidates, rejected), = r.counts.tolist()
+        stats.rows_scanned += rows_scanned
+        stats.runs += runs
+        stats.seeds += seeds
+        stats.candidates += candidates
+        for key, k in zip(_REASON_KEYS, rejected.tolist()[1:]):  # REASONS: Reject 1, 2, ... in order
+            if k:
+                stats.rejected[key] = stats.rejected.get(key, 0) + k
     rows, x = r.rows, r.x
     stacks: list[Stack] = []
     verified: list[Stack] = []

@@ -144,8 +144,11 @@ def test_property_random_poses(lens, u, a, x, y, polarity, seed):
 def test_stats_and_params(cam16, rng):
     img = render_frame(cam16, pose_at_column(cam16, 3.0, 0.2), noise=1.0, rng=rng)
     s = DetectionStats()
-    assert len(detect_targets(img, cam16, stats=s)) == 1
+    found = detect_targets(img, cam16, stats=s)
+    assert len(found) == 1
     assert s.accepted == 1 and s.rows_scanned >= 48 and s.seconds > 0
+    # without stats no bookkeeping is done, and nothing else changes
+    assert [o.to_dict() for o in detect_targets(img, cam16)] == [o.to_dict() for o in found]
     # the thesis's 15-row minimum height is a parameter
     assert detect_targets(img, cam16, min_rows=400) == []
 
