@@ -251,7 +251,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
             pending = (camera, v, box)
     if est is None:
         return edges, cxs, top, bot, None
-    blur = _blur_sd(img, v, est)
+    blur = _blur_sd(img, v, est)  # (a pending window's est carries its blur: exact_measure_lut)
     if not clipped and abs(est.edge_bias) > MAX_SHIFT_SHARE * max(blur, 0.5):
         return edges, cxs, top, bot, None  # bars and gap of unequal widths: not a target
     if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
