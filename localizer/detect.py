@@ -9,41 +9,29 @@ import types
 
 import numpy as np
 
-from localizer._kernels.clipped import SIGMA_BLURRED
+from localizer._kernels.measure import linear_box
+from localizer._kernels.records import FrameStatus
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
 from localizer.exact_pose import exact_measure, exact_measure_lut, exact_pose
+from localizer.fused import FrameTargets, detect_frame, frame_plan
 from localizer.numeric import check_choice
-from localizer.observation import ImageMeasurements, TargetObservation
+from localizer.observation import TargetObservation, observation_of
 from localizer.params import METHODS, DetectionStats, DetectorParams
-from localizer.photometric import refine_pose
 from localizer.pyramid import LEVEL_ROWS, detect_pyramid
-from localizer.recognize import find_stacks
+from localizer.pose import PoseEstimate
+from localizer.recognize import candidate_stack, find_stacks
 from localizer.subpixel_edges import subpixel_edges
 from localizer.target import TargetSpec
+from localizer.target_finish import MAX_ALPHA, MAX_FIT_RMS, SRGB_TO_LINEAR, finish, window_parts
 from localizer.thesis_edges import thesis_edges
 from localizer.thesis_pose import thesis_pose
 
-#: an exact fit whose normalised residual (``sqrt(chi2 / 3)``) exceeds this is not a target:
-#: true targets reach 2.2 on the envelope benchmark's independent frames (dim light) and 3.7 in
-#: 4,800 frames of the accuracy sweep (a saturated target 7.6 m away); a pair of strokes of
-#: lettering, or a stroke beside a light strip, fits with 4 to 7
-MAX_FIT_RMS = 5.0
-#: largest Mahalanobis distance (under the edge-based covariance) of an accepted photometric
-#: refinement from the edge-based pose; on 1,648 refinements of the accuracy sweep the
-#: largest was 4.9
-PHOTOMETRIC_GATE = 6.0
-#: a blurred target's orientation (:func:`_photometric`): this share of the refinement's move
-#: from the edge-based one. On the envelope's blur3 frames (265 refined) the mean alpha error
-#: of bars >= 60 rows was 0.33 deg from the edges, 0.28 refined, 0.24 with their mean (max
-#: 1.83, 3.07, 1.83 deg); under 60 rows 0.76, 0.60, 0.40 (max 4.8, 6.2, 3.6 deg). The range
-#: stays the refinement's (mean error 2.4 mm from the edges' 5.1 mm on bars >= 60 rows)
-BLURRED_ALPHA_SHARE = 0.5
-#: the sRGB curve's inverse, code for code (8 bits): linear light of an sRGB-encoded grey level
-SRGB_TO_LINEAR = np.clip(np.rint(255.0 * np.where(np.arange(256) <= 10.31475, np.arange(256) / (255.0 * 12.92),
-                                                  ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4)), 0, 255
-                         ).astype(np.uint8)
+#: px, the per-edge error floor of a clipped target (at least): the clipped pixels hide up to
+#: ~0.58 px of where a sharp edge lies, a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge
+#: beyond the common shift
+CLIPPED_FLOOR = 0.17
 #: ``response="auto"``: a target's pixels are taken as sRGB-encoded (and linearized, :func:`_exact`)
 #: when the exact fit's common shift of every edge towards its dark side exceeds this share of the
 #: edges' blur sd (px, at least 0.5). On the envelope benchmark's frames the share is 0.22-0.41
@@ -150,6 +138,20 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
             st.accepted = accepted + len(out)
             st.seconds = seconds + time.perf_counter() - t0
         return out
+    found = None
+    if method == "exact" and not camera.has_distortion and not p.debug_dir:
+        try:  # the common path, in one compiled call
+            found = detect_frame(img, frame_plan(p, camera.fx, camera.fy, camera.cx, camera.cy, target.bar_width,
+                                                 target.bar_height, target.margin, ENCODED_SHIFT, MAX_SHIFT_SHARE,
+                                                 MAX_ALPHA, MAX_FIT_RMS, CLIPPED_FLOOR), SRGB_TO_LINEAR, st)
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
+            found = None  # a degenerate measurement: step by step, each target on its own
+    if found is not None:
+        out = _drop_shared_bars(_fused(img, camera, target, p, found, st), st)
+        if st is not None:
+            st.accepted += len(out)
+            st.seconds += time.perf_counter() - t0
+        return out
     out: list[TargetObservation] = []
     stacks, verified = find_stacks(img, camera, target, p, st, keep_candidates=bool(p.debug_dir))
     for v in verified:
@@ -225,9 +227,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     edges too), with ``"linear"`` never."""
     saturated = v.bright >= 250.0
     clipped = saturated or (v.dark <= 5.0)
-    # clipped edges: the clipped pixels hide up to ~0.58 px of where an edge lies (sharp
-    # edges), a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge beyond the common shift
-    floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, 0.17)
+    floor = p.edge_sigma_floor if not clipped else max(p.edge_sigma_floor, CLIPPED_FLOOR)
     view = None  # a linearized measurement: (window, box, its camera and stack or None)
     if p.response == "srgb":
         found, *view = _linear_edges_pose(img, camera, target, v, floor, p)
@@ -254,19 +254,7 @@ def _exact(img: np.ndarray, camera: Camera, target: TargetSpec, v, p: DetectorPa
     blur = _blur_sd(img, v, est)  # (a pending window's est carries its blur: exact_measure_lut)
     if not clipped and abs(est.edge_bias) > MAX_SHIFT_SHARE * max(blur, 0.5):
         return edges, cxs, top, bot, None  # bars and gap of unequal widths: not a target
-    if refine and p.photometric != "off" and not camera.has_distortion and est.z > 0 and math.isfinite(est.distance):
-        c = est.covariance
-        # "uncertain": the edges' pose falls short of what the refinement is for (DetectorParams)
-        uncertain = bool(abs(c[2, 2]) > p.refine_alpha_sd ** 2 or abs(c[0, 0]) > (p.refine_range_sd * est.distance) ** 2)
-        if p.photometric == "all" or (p.photometric == "clipped" and saturated) or (p.photometric == "auto" and uncertain):
-            # an uncertain saturated pose may be off by more than the fit's basin: several starts
-            if pending is not None:
-                camera, v = _window_parts(*pending)
-            est = _photometric(img, camera, target, v, est, uncertain and saturated, blur)
-    if not (est.z > 0 and math.isfinite(est.distance) and abs(est.alpha) < math.radians(89.0)
-            and est.rms < MAX_FIT_RMS and all(math.isfinite(x) for x in est.covariance.ravel().tolist())):
-        est = None
-    return edges, cxs, top, bot, est
+    return edges, cxs, top, bot, finish(img, camera, target, v, p, est, blur, saturated, pending, refine)
 
 
 def _edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: float, p: DetectorParams):
@@ -294,7 +282,7 @@ def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, f
         import cv2
 
         window = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR)
-        cam, lv = _window_parts(camera, v, box)
+        cam, lv = window_parts(camera, v, box)
         return _edges_pose(window, cam, target, lv, floor, p), window, box, (cam, lv)
     *found, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, camera, target, v, floor, p.width_tolerance,
                                        p.width_slack, p.min_rows)
@@ -302,35 +290,11 @@ def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, f
 
 
 def _linear_box(img: np.ndarray, v) -> tuple[int, int, int, int]:
-    """``(r0, r1, c0, c1)``: the neighbourhood of the verified stack ``v`` (the bars, their margins
-    and the blur's reach; rows ``r0:r1``, columns ``c0:c1`` of ``img``) that is linearized."""
-    h, w = img.shape
+    """``(r0, r1, c0, c1)``: the neighbourhood of the verified stack ``v`` (rows ``r0:r1``, columns
+    ``c0:c1`` of ``img``) that is linearized (:func:`localizer._kernels.measure.linear_box`)."""
     (t0, b0), (t1, b1) = v.ends
     xb = v.bounds
-    pad_r = (max(b0, b1) - min(t0, t1) + 1) // 2 + 12  # the margins (a quarter of a bar) and more
-    pad_c = int(xb[3] - xb[0]) // 2 + 12
-    r0, r1 = max(0, int(min(t0, t1)) - pad_r), min(h, int(max(b0, b1)) + pad_r + 1)
-    c0, c1 = max(0, int(xb[0]) - pad_c), min(w, int(xb[3]) + pad_c + 1)
-    return r0, r1, c0, c1
-
-
-def _window_parts(camera: Camera, v, box: tuple[int, int, int, int]):
-    """``(camera, stack)`` of the linearized window ``box = (r0, r1, c0, c1)`` of a frame
-    (:func:`_linear_box`): ``camera`` with its principal point moved by the window's first column
-    ``c0`` and row ``r0``, and ``v`` in the window's pixels with its grey levels linearized."""
-    r0, r1, c0, c1 = box
-    cam = camera.cropped(c0, r0, c1, r1)
-    lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((int(a) - r0, int(b) - r0) for a, b in v.ends),
-                             median_x=None if v.median_x is None else v.median_x - c0,
-                             dark=_linear_grey(v.dark), bright=_linear_grey(v.bright))
-    return cam, lv
-
-
-def _linear_grey(g: float) -> float:
-    """:data:`SRGB_TO_LINEAR` at the grey level ``g`` (0..255), interpolated."""
-    i = min(max(int(g), 0), 254)
-    f = min(max(g - i, 0.0), 1.0)
-    return float((1.0 - f) * int(SRGB_TO_LINEAR[i]) + f * int(SRGB_TO_LINEAR[i + 1]))
+    return linear_box(img.shape[0], img.shape[1], int(t0), int(b0), int(t1), int(b1), float(xb[0]), float(xb[3]))
 
 
 def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) -> bool:
@@ -349,50 +313,6 @@ def _blur_sd(img: np.ndarray, v, est=None) -> float:
     return float(rows_blur(img, edge_rows(img, v.rows, bounds), bounds))
 
 
-def _photometric(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool, blur: float):
-    """The edge-based pose ``est`` refined on the target's pixels (:mod:`localizer.photometric`),
-    from several starts when ``wide``.
-
-    The edge-based covariance is kept: on clipped targets the censored pixels make the fit's
-    own normal matrix blind to the directions in which clipped edges can slide, and on the
-    others its pixel-level model error (background bleeding into the margin, the blur
-    model) is not in it; the edge-based covariance (with its per-edge floor for clipped
-    pixels) is the conservative statement. On a blurred target (``blur``, the row-mean
-    profile's sd, px, at least :data:`~localizer._kernels.clipped.SIGMA_BLURRED`) the fit starts
-    from that blur, and the difference ``dv`` between the two estimates is added to the
-    covariance (``+ dv dv^T``): the two models of its edges (a Gaussian blur in both) disagree
-    by more than the edges' noise where the blur is as wide as a bar."""
-    alt = [a for a in est.alpha_candidates if abs(a - est.alpha) > 0.01]
-    blurred = blur >= SIGMA_BLURRED
-    try:
-        r = refine_pose(img, camera, target, (est.x, est.z, est.alpha, est.height), bool(v.positive),
-                        float(v.dark), float(v.bright), sigma=blur if blurred else 0.4,
-                        alt_alpha=alt[0] if alt else None, wide=wide)
-    except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):  # a degenerate fit: the edges' answer
-        return est
-    if r is None:
-        return est
-    X, Z, alpha, Y = (float(x) for x in r[0][:4])
-    if not (Z > 0 and abs(alpha) < math.radians(89.0)):
-        return est
-    d, beta = math.hypot(X, Z), math.atan2(X, Z)
-    # a refinement far outside the edge-based covariance means the pixel model does not hold
-    # here (something across the target, uneven light): keep the edges' answer
-    dv = np.array([d - est.distance, beta - est.beta, alpha - est.alpha])
-    if not float(dv @ np.linalg.solve(est.covariance, dv)) <= PHOTOMETRIC_GATE ** 2:
-        return est
-    cov = est.covariance
-    if blurred:  # two models of a blurred target's edges that disagree: at least as uncertain as their difference
-        cov = cov + np.outer(dv, dv)
-        # the orientation rests on sub-pixel differences of the bars' widths and heights, where the
-        # pixel model's error at this blur (not pinned down; one light level over unevenly lit
-        # bars is a suspect) moves its alpha by as much as the edges' noise (3.6 deg, 60 of its own
-        # sd, on an 84-row target at 3 px), the two errors nearly independent (blur3, 265 frames:
-        # correlation -0.2 to 0.3): their mean (:data:`BLURRED_ALPHA_SHARE`)
-        alpha = est.alpha + BLURRED_ALPHA_SHARE * (alpha - est.alpha)
-    return dataclasses.replace(est, distance=d, beta=beta, alpha=alpha, z=Z, x=X, height=Y, covariance=cov)
-
-
 def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str,
              p: DetectorParams) -> TargetObservation | None:
     if method == "thesis":
@@ -409,16 +329,56 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
         edges, cxs, top, bot, est = _exact(img, camera, target, v, p)
         if est is None:
             return None
-    ex, bottom = edges, bot
-    h1, h2 = bottom[0] - top[0], bottom[1] - top[1]
-    meas = ImageMeasurements(
-        edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
-        delta_y=0.5 * (h1 + h2), centre=(0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))),
-        bar_cx=cxs, top_y=top, bottom_y=bottom, rows=(int(v.rows[0]), int(v.rows[-1])),
-        n_rows=v.n_rows, dark=float(v.dark), bright=float(v.bright))
-    return TargetObservation(
-        distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),
-        x=float(est.x), height=float(est.height), polarity=v.polarity, method=method,
-        covariance=np.asarray(est.covariance, float), measurements=meas,
-        alpha_candidates=tuple(float(a) for a in est.alpha_candidates),
-        alpha_ambiguous=bool(est.ambiguous), edge_bias=float(est.edge_bias), fit_rms=float(est.rms))
+    return observation_of(edges, cxs, top, bot, (int(v.rows[0]), int(v.rows[-1])), v.dark, v.bright, v.polarity,
+                        method, est)
+
+
+def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams, f: FrameTargets,
+           st: DetectionStats | None) -> list[TargetObservation]:
+    """The observations of the fused call's verified stacks (:func:`localizer.fused.detect_frame`),
+    top to bottom, left to right: each ``ACCEPTED`` one, and each ``REFINE`` one refined and
+    checked by :func:`_finish` (as :func:`_exact` would); ``REJECTED`` ones counted as
+    ``st.rejected["pose"]``."""
+    if not f.targets.size:
+        return []
+    out = []
+    cands = f.candidates.tolist()
+    found = list(zip(f.targets.tolist(), f.results.tolist()))
+    if len(found) > 1:  # (the search's order: top to bottom, left to right, as find_stacks)
+        found.sort(key=lambda t: (int(f.rows[cands[t[0][0]][0]]), float(f.x[cands[t[0][0]][0], 0])))
+    for (i, status, linear, wide, box), res in found:
+        c = cands[i]
+        if status == FrameStatus.REJECTED:
+            if st is not None:
+                st.reject("pose")
+            continue
+        (_, e0, e1, e2, e3, cx1, cx2, t1, t2, b1, b2, d, beta, alpha, z, x, height, bias, a1, a2, nsols, chi2, blur,
+         cov) = res[1] if linear else res[0]
+        edges, cxs, top, bot = (e0, e1, e2, e3), (cx1, cx2), (t1, t2), (b1, b2)
+        box = tuple(box.tolist())
+        if linear:  # the window's pixels
+            r0, c0 = box[0], box[2]
+            edges, cxs = tuple(x + c0 for x in edges), tuple(x + c0 for x in cxs)
+            top, bot = tuple(y + r0 for y in top), tuple(y + r0 for y in bot)
+        est = PoseEstimate(d, beta, alpha, z, x, height, cov, (a1, a2), nsols > 1, bias, math.sqrt(chi2 / 3.0), blur)
+        if status == FrameStatus.REFINE:
+            v = candidate_stack(f.rows, f.x, c)
+            pixels, pending = img, None
+            if linear:
+                import cv2
+
+                pixels, pending = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR), (camera, v, box)
+            try:
+                est = finish(pixels, camera, target, v, p, est, blur, c[10] >= 250.0, pending)
+            except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
+                est = None
+            if est is None:
+                if st is not None:
+                    st.reject("pose")
+                continue
+        a, b = c[0], c[1]
+        out.append(observation_of(edges, cxs, top, bot, (int(f.rows[a]), int(f.rows[b - 1])), c[9], c[10],
+                                "positive" if c[2] else "negative", "exact", est))
+    return out
+
+

@@ -106,3 +106,23 @@ class TargetObservation:
                 "rows": list(m.rows), "n_rows": m.n_rows, "dark": m.dark, "bright": m.bright,
             },
         }
+
+
+def observation_of(edges: tuple, cxs: tuple, top: tuple, bottom: tuple, rows: tuple[int, int], dark: float,
+                 bright: float, polarity: str, method: str, est) -> TargetObservation:
+    """The observation of a target whose edges (px: 4 columns, 2 bar centre columns, 2 tops and 2
+    bottoms) make the pose ``est`` (a :class:`PoseEstimate`); ``rows`` the (first, last) row of
+    its stack, ``dark`` and ``bright`` its grey levels."""
+    ex = edges
+    h1, h2 = bottom[0] - top[0], bottom[1] - top[1]
+    meas = ImageMeasurements(
+        edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
+        delta_y=0.5 * (h1 + h2), centre=(0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))),
+        bar_cx=cxs, top_y=top, bottom_y=bottom, rows=rows, n_rows=rows[1] - rows[0] + 1, dark=float(dark),
+        bright=float(bright))
+    return TargetObservation(
+        distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),
+        x=float(est.x), height=float(est.height), polarity=polarity, method=method,
+        covariance=np.asarray(est.covariance, float), measurements=meas,
+        alpha_candidates=tuple(float(a) for a in est.alpha_candidates),
+        alpha_ambiguous=bool(est.ambiguous), edge_bias=float(est.edge_bias), fit_rms=float(est.rms))

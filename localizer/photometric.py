@@ -49,7 +49,7 @@ pixels that meet there.
 What the pixels cannot tell stays untold: on small, sharp, saturated targets the cost
 can be flat along a combination of range, orientation and the (clipped, unseen) bright
 level, and the fit then lands anywhere in that valley. The caller therefore keeps the
-edge-based covariance (:func:`localizer.detect._photometric`).
+edge-based covariance (:func:`localizer.target_finish.photometric_pose`).
 
 Lens distortion is not modelled: the refinement applies to undistorted cameras only.
 """

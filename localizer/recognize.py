@@ -93,27 +93,42 @@ def find_stacks(image: np.ndarray, camera: Camera, target: TargetSpec, p: Detect
     """
     r = search.recognize(image, search_settings(p, camera.fx, camera.fy, target.bar_width, target.bar_height))
     if stats is not None:
-        (rows_scanned, runs, seeds, candidates, rejected), = r.counts.tolist()
-        stats.rows_scanned += rows_scanned
-        stats.runs += runs
-        stats.seeds += seeds
-        stats.candidates += candidates
-        for key, k in zip(_REASON_KEYS, rejected.tolist()[1:]):  # REASONS: Reject 1, 2, ... in order
-            if k:
-                stats.rejected[key] = stats.rejected.get(key, 0) + k
+        add_counts(stats, r.counts)
     rows, x = r.rows, r.x
     stacks: list[Stack] = []
     verified: list[Stack] = []
-    for a, b, pos, ok, t0, b0, t1, b1, median_x, dark, bright in r.candidates.tolist():
-        if ok:
-            st = Stack(rows[a:b], x[a:b], pos, dark, bright, ((t0, b0), (t1, b1)), median_x)
+    for c in r.candidates.tolist():
+        if c[3]:
+            st = candidate_stack(rows, x, c)
             verified.append(st)
             stacks.append(st)
         elif keep_candidates:
-            stacks.append(Stack(rows[a:b], x[a:b], pos, median_x=median_x))
+            stacks.append(candidate_stack(rows, x, c))
     if len(verified) > 1:
         verified.sort(key=lambda s: (int(s.rows[0]), float(s.x[0, 0])))
     return stacks, verified
+
+
+def candidate_stack(rows: np.ndarray, x: np.ndarray, c: tuple) -> Stack:
+    """The :class:`Stack` of a search's candidate ``c`` (a CANDIDATE record as a tuple) whose lines
+    are ``rows[start:stop]`` with run boundaries ``x[start:stop]`` (grey levels and bar ends only
+    when verified)."""
+    a, b, pos, ok, t0, b0, t1, b1, median_x, dark, bright = c
+    if ok:
+        return Stack(rows[a:b], x[a:b], pos, dark, bright, ((t0, b0), (t1, b1)), median_x)
+    return Stack(rows[a:b], x[a:b], pos, median_x=median_x)
+
+
+def add_counts(stats: DetectionStats, counts: np.ndarray) -> None:
+    """Add a search's work counts and rejections (its ``(1,)`` SEARCH_COUNTS record) to ``stats``."""
+    (rows_scanned, runs, seeds, candidates, rejected), = counts.tolist()
+    stats.rows_scanned += rows_scanned
+    stats.runs += runs
+    stats.seeds += seeds
+    stats.candidates += candidates
+    for key, k in zip(_REASON_KEYS, rejected.tolist()[1:]):  # REASONS: Reject 1, 2, ... in order
+        if k:
+            stats.rejected[key] = stats.rejected.get(key, 0) + k
 
 
 @functools.lru_cache(maxsize=32)

@@ -45,6 +45,7 @@ def thesis() -> None:
 
     camera, image = _frame()
     detect_targets(image, camera, method="thesis")
+    detect_targets(image, camera, method="thesis", response="srgb")  # its exact check on a linearized window
 
 
 def pyramid() -> None:

@@ -56,33 +56,67 @@ def exact_measure_lut(image, lut, box, stack_rows, bounds, ends, positive, camer
     more than the measurement). Returns ``(result, window)``: the
     :data:`~localizer._kernels.records.EXACT_RESULT` record, in the window's pixels, and the
     ``(r1 - r0, c1 - c0)`` uint8 window it was measured on."""
-    r0, r1, c0, c1 = box
+    c, t = camera[0], target[0]
+    e = np.empty((2, 2), np.int64)
+    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
+    out = np.zeros(1, EXACT_RESULT)
+    win = measure_lut_into(out[0], image, lut, box, stack_rows, bounds, e, positive,
+                           Intrinsics(c.fx, c.fy, c.cx, c.cy), TargetConstants(t.bar_width, t.bar_height, t.margin),
+                           settings[0])
+    return out, win
+
+
+@jit
+def measure_lut_into(r, image, lut, box, stack_rows, bounds, e, positive, cam, tc, st):
+    """:func:`measure_into` of the window ``box = (r0, r1, c0, c1)`` of ``image`` passed through
+    ``lut`` (:func:`exact_measure_lut`; ``stack_rows``, ``bounds``, ``e`` and ``cam`` the frame's,
+    the result in the window's pixels). Returns the uint8 window."""
+    r0, r1, c0, c1 = box[0], box[1], box[2], box[3]
     win = np.empty((r1 - r0, c1 - c0), np.uint8)
     for i in range(r1 - r0):
         src = image[r0 + i]
         dst = win[i]
         for j in range(c1 - c0):
             dst[j] = lut[src[c0 + j]]
-    c, t = camera[0], target[0]
-    e = np.empty((2, 2), np.int64)
-    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0] - r0, ends[0][1] - r0, ends[1][0] - r0, ends[1][1] - r0
-    out = measure(win, stack_rows - r0, bounds - c0, e, positive, Intrinsics(c.fx, c.fy, c.cx - c0, c.cy - r0),
-                  TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
-    return out, win
+    ew = np.empty((2, 2), np.int64)
+    ew[0, 0], ew[0, 1], ew[1, 0], ew[1, 1] = e[0, 0] - r0, e[0, 1] - r0, e[1, 0] - r0, e[1, 1] - r0
+    measure_into(r, win, stack_rows - r0, bounds - c0, ew, positive, Intrinsics(cam.fx, cam.fy, cam.cx - c0, cam.cy - r0),
+                 tc, st)
+    return win
+
+
+@jit
+def linear_box(h, w, t0, b0, t1, b1, x0, x3):
+    """``(r0, r1, c0, c1)``: the neighbourhood (rows ``r0:r1``, columns ``c0:c1`` of an ``(h, w)``
+    frame) of a verified stack whose bars run from rows ``t0``-``b0`` and ``t1``-``b1`` (its rough
+    ends) over columns ``x0``-``x3`` (its outer median run boundaries) that is linearized: the
+    bars, their margins (a quarter of a bar) and the blur's reach."""
+    pad_r = (max(b0, b1) - min(t0, t1) + 1) // 2 + 12
+    pad_c = int(x3 - x0) // 2 + 12
+    return (max(0, min(t0, t1) - pad_r), min(h, max(b0, b1) + pad_r + 1), max(0, int(x0) - pad_c),
+            min(w, int(x3) + pad_c + 1))
 
 
 @jit
 def measure(image, stack_rows, bounds, e, positive, cam, tc, st):
-    """:func:`exact_measure`'s body: ``e`` ``(2, 2)`` int64 rough bar ends (rows), ``cam`` an
+    """:func:`exact_measure`'s body, its result a new ``(1,)`` record (:func:`measure_into`)."""
+    out = np.zeros(1, EXACT_RESULT)
+    measure_into(out[0], image, stack_rows, bounds, e, positive, cam, tc, st)
+    return out
+
+
+@jit
+def measure_into(r, image, stack_rows, bounds, e, positive, cam, tc, st):
+    """:func:`exact_measure`'s body, written into ``r`` (an :data:`~localizer._kernels.records.EXACT_RESULT`
+    record of zeros): ``e`` ``(2, 2)`` int64 rough bar ends (rows), ``cam`` an
     :class:`~localizer._kernels.records.Intrinsics`, ``tc`` a
-    :class:`~localizer._kernels.records.TargetConstants`, ``st`` the settings record's row."""
+    :class:`~localizer._kernels.records.TargetConstants`, ``st`` an
+    :data:`~localizer._kernels.records.EXACT_SETTINGS` record."""
     rows = edge_rows(image, stack_rows, bounds)
     m, _, _, _ = subpixel(image, rows, bounds, e, positive)
     blur = rows_blur(image, rows, bounds)
     floor = blur_floor(blur, bounds, st.sigma_floor)
     edges, top, bot = m.edges, m.top, m.bottom
-    out = np.zeros(1, EXACT_RESULT)
-    r = out[0]
     r.edge0, r.edge1, r.edge2, r.edge3 = edges[0], edges[1], edges[2], edges[3]
     r.bar_cx1, r.bar_cx2 = m.bar_cx[0], m.bar_cx[1]
     r.top1, r.top2, r.bottom1, r.bottom2 = top[0], top[1], bot[0], bot[1]
@@ -91,10 +125,10 @@ def measure(image, stack_rows, bounds, e, positive, cam, tc, st):
         r.cov[k, k] = 1.0
     if not makes_target(edges[0], edges[1], edges[2], edges[3], bot[0] - top[0], bot[1] - top[1],
                         st.width_tolerance, st.width_slack, st.min_rows):
-        return out
+        return
     f = fit(m, cam, tc, positive, floor, st.iterations)
     if f.status != FitStatus.FITTED:
-        return out
+        return
     p = f.p
     r.found = True
     r.distance = math.hypot(p[0], p[1])
@@ -111,4 +145,3 @@ def measure(image, stack_rows, bounds, e, positive, cam, tc, st):
     for i in range(3):
         for j in range(3):
             r.cov[i, j] = f.cov[i, j]
-    return out

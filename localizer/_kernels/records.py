@@ -25,11 +25,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "N_REASONS", "REASONS", "SEARCH_COUNTS",
-           "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitEnds", "FitGeometry", "FitStatus",
-           "Intrinsics", "Levels", "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest",
-           "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record",
-           "record_dtype"]
+__all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "FRAME_TARGET", "INTRINSICS", "MEASURE_SETTINGS",
+           "N_REASONS", "REASONS", "SEARCH_COUNTS", "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings",
+           "FitEnds", "FitGeometry", "FitStatus", "FrameStatus", "Intrinsics", "Levels", "MeasureSettings",
+           "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest", "SearchResult",
+           "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record", "record_dtype"]
 
 
 # ------------------------------------------------------------------ inputs
@@ -109,6 +109,37 @@ class ExactSettings(NamedTuple):
     min_rows: float  # rows
 
 
+class MeasureSettings(NamedTuple):
+    """The per-target part of the fused frame call (:func:`localizer._kernels.frame.detect_frame`;
+    passed as :func:`as_record`): the camera, the target, the exact-pose settings and the
+    decisions :func:`localizer.detect.detect_targets` makes on each target's edges, resolved in
+    Python (:func:`localizer.fused.frame_plan`)."""
+    fx: float  # px, the undistorted camera's focal lengths and principal point
+    fy: float
+    cx: float
+    cy: float
+    bar_width: float  # m, the target (TargetConstants)
+    bar_height: float
+    margin: float
+    sigma_floor: float  # px, per-edge error floor of a target that is not clipped
+    clipped_floor: float  # px, of a clipped one
+    iterations: int  # Gauss-Newton iterations per start
+    width_tolerance: float  # the target test
+    width_slack: float  # px
+    min_rows: float  # rows
+    srgb: bool  # response "srgb": every target linearized
+    auto_response: bool  # response "auto": linearized when its edges say so
+    encoded_shift: float  # share of the blur sd (localizer.detect.ENCODED_SHIFT)
+    max_shift_share: float  # share of the blur sd (localizer.detect.MAX_SHIFT_SHARE)
+    refine_all: bool  # photometric "all"
+    refine_clipped: bool  # photometric "clipped"
+    refine_auto: bool  # photometric "auto"
+    refine_alpha_var: float  # rad^2, refine_alpha_sd squared
+    refine_range_sd: float  # share of the range
+    max_alpha: float  # rad, |alpha| of a reported pose is below it
+    max_fit_rms: float  # the exact fit's normalised residual of a reported pose is below it
+
+
 class Levels(NamedTuple):
     """Start of the grey levels and blur of a photometric fit: dark and bright grey levels,
     blur sd (px)."""
@@ -139,6 +170,14 @@ class Reject(IntEnum):
 REASONS: tuple[Reject, ...] = tuple(r for r in Reject if r != Reject.NONE)
 #: length of the per-reason count array (indexed by :class:`Reject`)
 N_REASONS = len(Reject)
+
+
+class FrameStatus(IntEnum):
+    """What the fused frame call (:func:`localizer._kernels.frame.detect_frame`) decided about
+    one verified stack."""
+    REJECTED = 0  # no pose: the edges make no target, no fit converged, or the pose fails a check
+    ACCEPTED = 1  # a pose, every check passed
+    REFINE = 2  # a pose to refine on the pixels (Python: localizer.photometric), then check
 
 
 class FitStatus(IntEnum):
@@ -253,6 +292,14 @@ EXACT_RESULT = np.dtype([
 ])
 
 
+#: what the fused frame call decided about one verified stack: its index into the candidates,
+#: a :class:`FrameStatus`, which of its two measurements to take (0: on the frame's pixels, 1: on
+#: the sRGB-linearized window ``box`` = (r0, r1, c0, c1), whose coordinates are the window's),
+#: and whether a refinement should start from several places (an uncertain saturated target)
+FRAME_TARGET = np.dtype([("candidate", np.int64), ("status", np.int64), ("linear", np.bool_), ("wide", np.bool_),
+                         ("box", np.int64, (4,))])
+
+
 class Selection(NamedTuple):
     """The pixels of a photometric fit: the columns used (m,), each pixel's index into them
     (n,) and its row (n,)."""
@@ -309,9 +356,10 @@ def record_dtype(cls: type) -> np.dtype:
 SEARCH_SETTINGS = record_dtype(SearchSettings)
 EXACT_SETTINGS = record_dtype(ExactSettings)
 INTRINSICS = record_dtype(Intrinsics)
+MEASURE_SETTINGS = record_dtype(MeasureSettings)
 TARGET_CONSTANTS = record_dtype(TargetConstants)
 _DTYPES = {SearchSettings: SEARCH_SETTINGS, ExactSettings: EXACT_SETTINGS, Intrinsics: INTRINSICS,
-           TargetConstants: TARGET_CONSTANTS}
+           TargetConstants: TARGET_CONSTANTS, MeasureSettings: MEASURE_SETTINGS}
 
 
 def as_record(values: NamedTuple) -> np.ndarray:

@@ -1,0 +1,75 @@
+"""The common path of :func:`localizer.detect_targets` in one compiled call: its settings and its call.
+
+For the ``exact`` method on a camera without lens distortion (and no debug images),
+:func:`detect_frame` searches the frame and measures every verified stack in
+:func:`localizer._kernels.frame.detect_frame`, and returns what Python still has to do per
+target. The settings of that call are resolved once per detector parameters, camera and
+target (:func:`frame_plan`). The other paths (the thesis method, distorted cameras, debug
+images) and the photometric refinement stay in :mod:`localizer.detect`, which turns both into
+observations.
+"""
+from __future__ import annotations
+
+import functools
+from typing import NamedTuple
+
+import numpy as np
+
+from localizer._kernels import frame
+from localizer._kernels.records import MeasureSettings, as_record
+from localizer.params import DetectionStats, DetectorParams
+from localizer.recognize import add_counts, search_settings
+
+__all__ = ["FramePlan", "FrameTargets", "detect_frame", "frame_plan"]
+
+
+class FramePlan(NamedTuple):
+    """The settings of one frame's compiled call (:func:`frame_plan`; the records are shared:
+    do not change them)."""
+
+    search: np.ndarray  # (1,) SEARCH_SETTINGS record
+    measure: np.ndarray  # (1,) MEASURE_SETTINGS record
+
+
+class FrameTargets(NamedTuple):
+    """What :func:`detect_frame` found: the search's rows ``(N,)`` and run boundaries ``(N, 4)``
+    of its candidates' lines, the candidates (CANDIDATE records), and per verified stack a
+    FRAME_TARGET record ``(V,)`` and its two EXACT_RESULT measurements ``(V, 2)``
+    (:func:`localizer._kernels.frame.detect_frame`)."""
+
+    rows: np.ndarray
+    x: np.ndarray
+    candidates: np.ndarray
+    targets: np.ndarray
+    results: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def frame_plan(p: DetectorParams, fx: float, fy: float, cx: float, cy: float, bar_width: float, bar_height: float,
+               margin: float, encoded_shift: float, max_shift_share: float, max_alpha: float,
+               max_fit_rms: float, clipped_floor: float) -> FramePlan:
+    """The :class:`FramePlan` of resolved parameters ``p`` (:meth:`DetectorParams.resolved`), an
+    undistorted camera's intrinsics (px), a target's bar width and height and margin (m), and
+    :mod:`localizer.detect`'s decisions on a target's edges: its shares of the blur sd
+    (``ENCODED_SHIFT``, ``MAX_SHIFT_SHARE``), the largest ``|alpha|`` (rad) and fit residual
+    reported, and the per-edge floor of a clipped target (px, at least; cached)."""
+    return FramePlan(search_settings(p, fx, fy, bar_width, bar_height), as_record(MeasureSettings(
+        fx=fx, fy=fy, cx=cx, cy=cy, bar_width=bar_width, bar_height=bar_height, margin=margin,
+        sigma_floor=float(p.edge_sigma_floor), clipped_floor=max(float(p.edge_sigma_floor), clipped_floor),
+        iterations=8, width_tolerance=float(p.width_tolerance), width_slack=float(p.width_slack),
+        min_rows=float(p.min_rows), srgb=p.response == "srgb", auto_response=p.response == "auto",
+        encoded_shift=encoded_shift, max_shift_share=max_shift_share, refine_all=p.photometric == "all",
+        refine_clipped=p.photometric == "clipped", refine_auto=p.photometric == "auto",
+        refine_alpha_var=float(p.refine_alpha_sd) ** 2, refine_range_sd=float(p.refine_range_sd),
+        max_alpha=max_alpha, max_fit_rms=max_fit_rms)))
+
+
+def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: DetectionStats | None) -> FrameTargets:
+    """The search and measurement of ``image`` (``(H, W)`` uint8, C-contiguous) in one compiled
+    call (:func:`localizer._kernels.frame.detect_frame`; ``lut`` the sRGB inverse), the search's
+    counts added to ``stats`` when given. Raises what the compiled call raises (a degenerate
+    measurement: ``ZeroDivisionError``, ...): the caller then takes the step-by-step path."""
+    sr, targets, results = frame.detect_frame(image, plan.search, plan.measure, lut)
+    if stats is not None:
+        add_counts(stats, sr.counts)
+    return FrameTargets(sr.rows, sr.x, sr.candidates, targets, results)
