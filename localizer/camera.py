@@ -215,16 +215,17 @@ class Camera:
         """The camera of the crop ``image[y0:y1, x0:x1]`` (pixels): the same optics, the principal
         point moved by the crop's corner (a pinhole camera: a pose found in the crop needs no
         conversion). Built without :meth:`__post_init__`'s checks when they could only pass
-        (plain ``int`` sizes of at least 8 px: this camera's fields are checked already), which
-        costs ~12 us a call (a linearized sRGB target takes one per frame)."""
-        w, h = x1 - x0, y1 - y0
-        if type(w) is not int or type(h) is not int or w < 8 or h < 8:
-            return Camera(self.fx, self.fy, self.cx - x0, self.cy - y0, w, h, self.dist)
-        cam = object.__new__(Camera)
-        for name, value in (("fx", self.fx), ("fy", self.fy), ("cx", float(self.cx - x0)),
-                            ("cy", float(self.cy - y0)), ("width", w), ("height", h), ("dist", self.dist)):
-            object.__setattr__(cam, name, value)
-        return cam
+        (:func:`_derived`)."""
+        return _derived(self.fx, self.fy, self.cx - x0, self.cy - y0, x1 - x0, y1 - y0, self.dist)
+
+    def binned(self, k: int) -> "Camera":
+        """The camera of this one's image area-averaged over ``k x k`` blocks (a pyramid level,
+        :func:`localizer.pyramid.level_image`): its ``(width // k) k`` first columns and
+        ``(height // k) k`` first rows, level pixel ``j`` covering pixels ``k j .. k j + k - 1``
+        (focal lengths divided by ``k``, principal point ``(c + 0.5) / k - 0.5``). Built as
+        :meth:`cropped` builds its cameras."""
+        return _derived(self.fx / k, self.fy / k, (self.cx + 0.5) / k - 0.5, (self.cy + 0.5) / k - 0.5,
+                        self.width // k, self.height // k, self.dist)
 
     # ------------------------------------------------------------ projection
     def project(self, points_cam) -> np.ndarray:
@@ -272,3 +273,18 @@ class Camera:
         out = cv2.undistortPoints(p.reshape(-1, 1, 2), self.K, np.asarray(self.dist), None, None, self.K,
                                       criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-9))
         return out.reshape(-1, 2)
+
+
+def _derived(fx: float, fy: float, cx: float, cy: float, width: int, height: int, dist: tuple) -> Camera:
+    """A camera derived from a checked one (:meth:`Camera.cropped`, :meth:`Camera.binned`): built
+    without :meth:`Camera.__post_init__`'s checks when they could only pass (finite positive
+    focal lengths, a checked ``dist``, plain ``int`` sizes of at least 8 px), which cost ~12 us
+    warm and several times that cold (the pyramid derives two cameras per target and frame)."""
+    if (type(width) is not int or type(height) is not int or width < 8 or height < 8
+            or not (math.isfinite(cx) and math.isfinite(cy))):
+        return Camera(fx, fy, cx, cy, width, height, dist)
+    cam = object.__new__(Camera)
+    for name, value in (("fx", float(fx)), ("fy", float(fy)), ("cx", float(cx)), ("cy", float(cy)), ("width", width),
+                        ("height", height), ("dist", dist)):
+        object.__setattr__(cam, name, value)
+    return cam

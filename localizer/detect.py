@@ -1,16 +1,14 @@
 """``detect_targets``: the whole pipeline of thesis Fig. 4.6 on one frame."""
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 import time
-import types
 
 import numpy as np
 
 from localizer._kernels.measure import linear_box
-from localizer._kernels.records import FrameStatus
+from localizer._kernels.records import FrameStatus, FusedColumn
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
@@ -32,6 +30,8 @@ from localizer.thesis_pose import thesis_pose
 #: ~0.58 px of where a sharp edge lies, a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge
 #: beyond the common shift
 CLIPPED_FLOOR = 0.17
+#: the first covariance column of a fused call's table
+COV = int(FusedColumn.COV00)
 #: ``response="auto"``: a target's pixels are taken as sRGB-encoded (and linearized, :func:`_exact`)
 #: when the exact fit's common shift of every edge towards its dark side exceeds this share of the
 #: edges' blur sd (px, at least 0.5). On the envelope benchmark's frames the share is 0.22-0.41
@@ -89,13 +89,6 @@ def _resolved_params(items: tuple, shape: tuple | None) -> DetectorParams:
     return p if shape is None else p.resolved(shape[0], shape[1])
 
 
-@functools.lru_cache(maxsize=64)
-def _level_params(p: DetectorParams) -> types.MappingProxyType:
-    """``p``'s fields as a read-only mapping, ``pyramid`` off: the parameters of one level of a
-    large frame (cached: ``dataclasses.asdict`` costs ~0.1 ms)."""
-    return types.MappingProxyType({**{f.name: getattr(p, f.name) for f in dataclasses.fields(p)}, "pyramid": False})
-
-
 def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), method: str = "exact", *,
                    stats: DetectionStats | None = None, **params) -> list[TargetObservation]:
     """Find every two-bar target in ``image`` and recover the camera pose to each.
@@ -127,12 +120,20 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
-    st = stats  # None: no bookkeeping (a cold call's Python is a good share of its time)
+    return _detect(img, camera, p, target, method, stats, t0)
+
+
+def _detect(img: np.ndarray, camera: Camera, p: DetectorParams, target: TargetSpec, method: str,
+            st: DetectionStats | None, t0: float | None = None) -> list[TargetObservation]:
+    """:func:`detect_targets` of a checked frame ``img`` (C-contiguous uint8 of ``camera``'s
+    shape) with resolved parameters ``p``; ``st`` None: no bookkeeping (a cold call's Python is a
+    good share of its time); ``t0`` the call's start (``time.perf_counter``), default now."""
+    if t0 is None:
+        t0 = time.perf_counter()
     if p.pyramid and img.shape[0] >= 2 * LEVEL_ROWS and not p.debug_dir:
         # a large frame: searched on a coarse level, each target measured where its blur is 1-2 px
         accepted, seconds = (st.accepted, st.seconds) if st is not None else (0, 0.0)
-        out = detect_pyramid(functools.partial(detect_targets, target=target, method=method, stats=st), img, camera,
-                             _level_params(p))
+        out = detect_pyramid(functools.partial(_detect, target=target, method=method, st=st), img, camera, p)
         out = _drop_shared_bars(out, st)
         if st is not None:
             st.accepted = accepted + len(out)
@@ -337,48 +338,38 @@ def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParam
            st: DetectionStats | None) -> list[TargetObservation]:
     """The observations of the fused call's verified stacks (:func:`localizer.fused.detect_frame`),
     top to bottom, left to right: each ``ACCEPTED`` one, and each ``REFINE`` one refined and
-    checked by :func:`_finish` (as :func:`_exact` would); ``REJECTED`` ones counted as
-    ``st.rejected["pose"]``."""
-    if not f.targets.size:
-        return []
-    out = []
-    cands = f.candidates.tolist()
-    found = list(zip(f.targets.tolist(), f.results.tolist()))
+    checked by :func:`localizer.target_finish.finish` (as :func:`_exact` would); ``REJECTED`` ones
+    counted as ``st.rejected["pose"]``."""
+    found = f.targets
     if len(found) > 1:  # (the search's order: top to bottom, left to right, as find_stacks)
-        found.sort(key=lambda t: (int(f.rows[cands[t[0][0]][0]]), float(f.x[cands[t[0][0]][0], 0])))
-    for (i, status, linear, wide, box), res in found:
-        c = cands[i]
-        if status == FrameStatus.REJECTED:
+        found = sorted(found, key=lambda t: (t.row0, t.x0))
+    out = []
+    for t in found:
+        if t.status == FrameStatus.REJECTED:
             if st is not None:
                 st.reject("pose")
             continue
-        (_, e0, e1, e2, e3, cx1, cx2, t1, t2, b1, b2, d, beta, alpha, z, x, height, bias, a1, a2, nsols, chi2, blur,
-         cov) = res[1] if linear else res[0]
-        edges, cxs, top, bot = (e0, e1, e2, e3), (cx1, cx2), (t1, t2), (b1, b2)
-        box = tuple(box.tolist())
-        if linear:  # the window's pixels
-            r0, c0 = box[0], box[2]
-            edges, cxs = tuple(x + c0 for x in edges), tuple(x + c0 for x in cxs)
-            top, bot = tuple(y + r0 for y in top), tuple(y + r0 for y in bot)
-        est = PoseEstimate(d, beta, alpha, z, x, height, cov, (a1, a2), nsols > 1, bias, math.sqrt(chi2 / 3.0), blur)
-        if status == FrameStatus.REFINE:
-            v = candidate_stack(f.rows, f.x, c)
+        est = PoseEstimate(t.distance, t.beta, t.alpha, t.z, t.x, t.height, np.array(t[COV:COV + 9]).reshape(3, 3),
+                           (t.alpha1, t.alpha2), t.n_solutions > 1, t.edge_bias, math.sqrt(t.chi2 / 3.0), t.blur)
+        if t.status == FrameStatus.REFINE:
+            v = candidate_stack(f.rows, f.x, f.candidates[int(t.candidate)].tolist())
             pixels, pending = img, None
-            if linear:
+            if t.linear:
                 import cv2
 
+                box = (int(t.r0), int(t.r1), int(t.c0), int(t.c1))
                 pixels, pending = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR), (camera, v, box)
             try:
-                est = finish(pixels, camera, target, v, p, est, blur, c[10] >= 250.0, pending)
+                est = finish(pixels, camera, target, v, p, est, t.blur, t.bright >= 250.0, pending)
             except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
                 est = None
             if est is None:
                 if st is not None:
                     st.reject("pose")
                 continue
-        a, b = c[0], c[1]
-        out.append(observation_of(edges, cxs, top, bot, (int(f.rows[a]), int(f.rows[b - 1])), c[9], c[10],
-                                "positive" if c[2] else "negative", "exact", est))
+        out.append(observation_of((t.edge0, t.edge1, t.edge2, t.edge3), (t.bar_cx1, t.bar_cx2), (t.top1, t.top2),
+                                  (t.bottom1, t.bottom2), (int(t.row0), int(t.row1)), t.dark, t.bright,
+                                  "positive" if t.positive else "negative", "exact", est))
     return out
 
 

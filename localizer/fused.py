@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from localizer._kernels import frame
-from localizer._kernels.records import MeasureSettings, as_record
+from localizer._kernels.records import FusedTarget, MeasureSettings, as_record
 from localizer.params import DetectionStats, DetectorParams
 from localizer.recognize import add_counts, search_settings
 
@@ -34,14 +34,12 @@ class FramePlan(NamedTuple):
 class FrameTargets(NamedTuple):
     """What :func:`detect_frame` found: the search's rows ``(N,)`` and run boundaries ``(N, 4)``
     of its candidates' lines, the candidates (CANDIDATE records), and per verified stack a
-    FRAME_TARGET record ``(V,)`` and its two EXACT_RESULT measurements ``(V, 2)``
-    (:func:`localizer._kernels.frame.detect_frame`)."""
+    :class:`~localizer._kernels.records.FusedTarget` (:func:`localizer._kernels.frame.detect_frame`)."""
 
     rows: np.ndarray
     x: np.ndarray
     candidates: np.ndarray
-    targets: np.ndarray
-    results: np.ndarray
+    targets: list[FusedTarget]
 
 
 @functools.lru_cache(maxsize=64)
@@ -69,7 +67,7 @@ def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: Det
     call (:func:`localizer._kernels.frame.detect_frame`; ``lut`` the sRGB inverse), the search's
     counts added to ``stats`` when given. Raises what the compiled call raises (a degenerate
     measurement: ``ZeroDivisionError``, ...): the caller then takes the step-by-step path."""
-    sr, targets, results = frame.detect_frame(image, plan.search, plan.measure, lut)
+    sr, table = frame.detect_frame(image, plan.search, plan.measure, lut)
     if stats is not None:
         add_counts(stats, sr.counts)
-    return FrameTargets(sr.rows, sr.x, sr.candidates, targets, results)
+    return FrameTargets(sr.rows, sr.x, sr.candidates, [FusedTarget._make(t) for t in table.tolist()])

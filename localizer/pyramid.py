@@ -39,6 +39,7 @@ import numpy as np
 from localizer._kernels.area import area_half, area_quarter
 from localizer._kernels.subpixel import rows_blur
 from localizer.camera import Camera
+from localizer.params import DetectorParams
 from localizer.observation import ImageMeasurements, TargetObservation
 
 __all__ = ["LEVEL_ROWS", "SIGMA_TARGET", "coarse_factor", "detect_pyramid", "level_image"]
@@ -89,15 +90,6 @@ def level_image(image: np.ndarray, k: int, box: tuple[int, int, int, int] | None
     return image
 
 
-@functools.lru_cache(maxsize=64)
-def _level_camera(camera: Camera, k: int) -> Camera:
-    """The camera of level ``k`` (whole blocks: the frame's ``(W // k) k`` first columns; cached:
-    a camera is immutable, and its checks cost ~40 us)."""
-    hh, ww = camera.height // k, camera.width // k
-    return Camera(camera.fx / k, camera.fy / k, (camera.cx + 0.5) / k - 0.5, (camera.cy + 0.5) / k - 0.5, ww, hh,
-                  camera.dist)
-
-
 def _blur(image: np.ndarray, o: TargetObservation, step: int = 1) -> float:
     """The blur sd (px) of observation ``o``'s target in ``image`` (in whose pixels ``o`` is
     measured): the row-mean profile over every ``step``-th row of its stack (but the first and
@@ -112,19 +104,23 @@ def _blur(image: np.ndarray, o: TargetObservation, step: int = 1) -> float:
     return float(rows_blur(image, rows, bounds))
 
 
-def _to_frame(m: ImageMeasurements, k: float, dx: float = 0.0, dy: float = 0.0) -> ImageMeasurements:
-    """``m`` measured on a level of factor ``k`` (or a crop at ``(dx, dy)``) in the frame's pixels."""
+def _to_frame(o: TargetObservation, k: float, dx: float = 0.0, dy: float = 0.0) -> TargetObservation:
+    """``o`` measured on a level of factor ``k`` (or a crop at ``(dx, dy)``) with its measurements
+    in the frame's pixels (built field by field: ``dataclasses.replace`` costs several times more)."""
+    m = o.measurements
     fx = lambda x: k * (x + 0.5) - 0.5 + dx  # noqa: E731
     fy = lambda y: k * (y + 0.5) - 0.5 + dy  # noqa: E731
     ex = tuple(fx(x) for x in m.edges_x)
     top = tuple(fy(y) for y in m.top_y)
     bot = tuple(fy(y) for y in m.bottom_y)
-    return dataclasses.replace(
-        m, edges_x=ex, outer_edges=(ex[0], ex[3]), h1=bot[0] - top[0], h2=bot[1] - top[1], delta_x=ex[3] - ex[0],
+    moved = ImageMeasurements(
+        edges_x=ex, outer_edges=(ex[0], ex[3]), h1=bot[0] - top[0], h2=bot[1] - top[1], delta_x=ex[3] - ex[0],
         delta_y=0.5 * (bot[0] - top[0] + bot[1] - top[1]), centre=(fx(m.centre[0]), fy(m.centre[1])),
         bar_cx=tuple(fx(x) for x in m.bar_cx), top_y=top, bottom_y=bot,
         rows=(int(math.floor(fy(m.rows[0] - 0.5) + 0.5)), int(math.ceil(fy(m.rows[1] + 0.5) - 0.5))),
-        n_rows=int(round(k * m.n_rows)))
+        n_rows=int(round(k * m.n_rows)), dark=m.dark, bright=m.bright)
+    return TargetObservation(o.distance, o.beta, o.alpha, o.z, o.x, o.height, o.polarity, o.method, o.covariance,
+                             moved, o.alpha_candidates, o.alpha_ambiguous, o.edge_bias, o.fit_rms)
 
 
 def _crop(camera: Camera, m: ImageMeasurements) -> tuple[int, int, int, int]:
@@ -138,19 +134,19 @@ def _crop(camera: Camera, m: ImageMeasurements) -> tuple[int, int, int, int]:
     return x0, y0, x1, y1
 
 
-def _params_at(resolved: dict, k: int) -> dict:
-    """The frame's resolved detector parameters for its level of factor ``k``: the lengths that
-    scale with the image (scan step, threshold window, minimum rows) divided by ``k``."""
-    out = dict(resolved)
-    if k == 1:
-        return out
-    if out.get("coarse_step") is not None:
-        out["coarse_step"] = max(1, round(out["coarse_step"] / k))
-    if out.get("threshold_window") is not None:  # odd, as DetectorParams.resolved makes it
-        out["threshold_window"] = 2 * max(4, round((out["threshold_window"] - 1) / (2 * k))) + 1
-    if out.get("min_rows") is not None:
-        out["min_rows"] = max(3, round(out["min_rows"] / k))
-    return out
+@functools.lru_cache(maxsize=64)
+def _params_at(p: DetectorParams, k: int, search: bool = False) -> DetectorParams:
+    """The frame's resolved detector parameters ``p`` for its level of factor ``k``: the lengths
+    that scale with the image (scan step, threshold window, minimum rows) divided by ``k``, no
+    pyramid, and no pixel-level refinement on the ``search`` level (cached)."""
+    changes = {"pyramid": False}
+    if search:
+        changes["photometric"] = "off"
+    if k > 1:
+        changes["coarse_step"] = max(1, round(p.coarse_step / k))
+        changes["threshold_window"] = 2 * max(4, round((p.threshold_window - 1) / (2 * k))) + 1  # odd, as resolved()
+        changes["min_rows"] = max(3, round(p.min_rows / k))
+    return dataclasses.replace(p, **changes)
 
 
 def _same(a: TargetObservation, b: TargetObservation) -> bool:
@@ -159,7 +155,7 @@ def _same(a: TargetObservation, b: TargetObservation) -> bool:
     return abs(ma.centre[0] - mb.centre[0]) < 0.25 * ma.delta_x and abs(ma.centre[1] - mb.centre[1]) < 0.25 * ma.delta_y
 
 
-def _measure_at(detect, image: np.ndarray, coarse: tuple[np.ndarray, int], camera: Camera, resolved: dict,
+def _measure_at(detect, image: np.ndarray, coarse: tuple[np.ndarray, int], camera: Camera, p: DetectorParams,
                 box: tuple[int, int, int, int], j: int) -> list[TargetObservation]:
     """The targets ``detect`` finds on the crop ``box = (x0, y0, x1, y1)`` of ``image`` (frame pixels)
     area-averaged by ``j``, in the frame's pixels; ``coarse = (level, k)`` the frame's level of
@@ -178,19 +174,19 @@ def _measure_at(detect, image: np.ndarray, coarse: tuple[np.ndarray, int], camer
     else:
         patch = level_image(image, j, (x0, y0, x1, y1))
     if j > 1:
-        cam = _level_camera(cam, j)
-    fine = detect(np.ascontiguousarray(patch), cam, **_params_at(resolved, j))
-    return [dataclasses.replace(f, measurements=_to_frame(f.measurements, j, x0, y0)) for f in fine]
+        cam = cam.binned(j)
+    fine = detect(np.ascontiguousarray(patch), cam, _params_at(p, j))
+    return [_to_frame(f, j, x0, y0) for f in fine]
 
 
-def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) -> list[TargetObservation]:
+def detect_pyramid(detect, image: np.ndarray, camera: Camera, p: DetectorParams) -> list[TargetObservation]:
     """The targets of a large frame ``image`` ``(H, W)`` uint8 (module docstring).
 
     Args:
-        detect: ``detect(image, camera, **params) -> list[TargetObservation]`` on one level
-            (:func:`localizer.detect_targets`; called with frames of fewer than
-            ``2 * LEVEL_ROWS`` rows only).
-        resolved: the detector parameters resolved for the whole frame (its scan step, threshold
+        detect: ``detect(image, camera, params) -> list[TargetObservation]`` on one level, with
+            resolved :class:`DetectorParams` (:func:`localizer.detect_targets` on a frame it
+            need not check; called with ``pyramid=False`` only).
+        p: the detector parameters resolved for the whole frame (its scan step, threshold
             window, minimum rows: the crops keep them); ``coarse_step``, ``threshold_window`` and
             ``min_rows`` are scaled for the coarse level.
     Returns:
@@ -201,8 +197,8 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
     out = []
     # the search: on the coarse level, without the pixel-level refinement (each target is
     # measured again below)
-    for o in detect(small, _level_camera(camera, k), **{**_params_at(resolved, k), "photometric": "off"}):
-        coarse = dataclasses.replace(o, measurements=_to_frame(o.measurements, k))
+    for o in detect(small, camera.binned(k), _params_at(p, k, search=True)):
+        coarse = _to_frame(o, k)
         # its blur, measured on the frame itself (on the coarse level a sharp edge and one of up to
         # k px look alike): the finest level where it is at most SIGMA_TARGET px
         s = _blur(image, coarse, step=max(1, k // 2))
@@ -214,7 +210,7 @@ def detect_pyramid(detect, image: np.ndarray, camera: Camera, resolved: dict) ->
         # reported); coarser: there, else on the coarse level (a small target may be too few
         # pixels for the recognizer on the coarser one)
         for lv in ([j] if j < k else [j // 2 ** i for i in range(int(math.log2(j // k)) + 1)]):
-            fine = _measure_at(detect, image, (small, k), camera, resolved, (x0, y0, x1, y1), lv)
+            fine = _measure_at(detect, image, (small, k), camera, p, (x0, y0, x1, y1), lv)
             fine = [f for f in fine if _same(f, coarse)]
             if len(fine) == 1:
                 out.append(fine[0])

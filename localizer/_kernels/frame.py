@@ -22,8 +22,13 @@ import numpy as np
 
 from localizer._jit import jit
 from localizer._kernels.measure import linear_box, measure_into, measure_lut_into
-from localizer._kernels.records import EXACT_RESULT, EXACT_SETTINGS, FRAME_TARGET, FrameStatus, Intrinsics, TargetConstants
+from localizer._kernels.records import (EXACT_RESULT, EXACT_SETTINGS, FrameStatus, FusedColumn, FusedTarget, Intrinsics,
+                                        TargetConstants)
 from localizer._kernels.search import recognize
+
+
+#: the columns of the result table (:class:`~localizer._kernels.records.FusedTarget`)
+N_FIELDS = len(FusedTarget._fields)
 
 
 @jit
@@ -36,12 +41,10 @@ def detect_frame(image, search, settings, lut):
         settings: ``(1,)`` :data:`~localizer._kernels.records.MEASURE_SETTINGS` record.
         lut: ``(256,)`` uint8, the sRGB inverse (:data:`localizer.detect.SRGB_TO_LINEAR`).
 
-    Returns ``(search_result, targets, results)``: the
-    :class:`~localizer._kernels.records.SearchResult`; per verified stack, in the search's order,
-    a :data:`~localizer._kernels.records.FRAME_TARGET` record ``(V,)``; and ``(V, 2)``
-    :data:`~localizer._kernels.records.EXACT_RESULT` records, its measurement on the frame's
-    pixels and on the linearized window (``targets.linear`` says which is the one; a window's
-    coordinates are the window's).
+    Returns ``(search_result, table)``: the :class:`~localizer._kernels.records.SearchResult`,
+    and per verified stack, in the search's order, a row of the ``(V, F)`` float64 table of
+    :class:`~localizer._kernels.records.FusedTarget` fields (columns
+    :class:`~localizer._kernels.records.FusedColumn`).
 
     Per stack, as :func:`localizer.detect._exact` in Python: a target whose bright side reaches
     250 or dark side 5 is clipped (its per-edge floor ``clipped_floor``; never linearized by
@@ -60,10 +63,9 @@ def detect_frame(image, search, settings, lut):
     for i in range(cand.size):
         if cand[i].verified:
             nv += 1
-    targets = np.zeros(nv, FRAME_TARGET)
-    results = np.zeros((nv, 2), EXACT_RESULT)
+    table = np.zeros((nv, N_FIELDS))
     if nv == 0:
-        return sr, targets, results
+        return sr, table
     s = settings[0]
     cam = Intrinsics(s.fx, s.fy, s.cx, s.cy)
     tc = TargetConstants(s.bar_width, s.bar_height, s.margin)
@@ -82,8 +84,6 @@ def detect_frame(image, search, settings, lut):
         cd = cand[i]
         if not cd.verified:
             continue
-        t = targets[j]
-        t.candidate = i
         saturated = cd.bright >= 250.0
         clipped = saturated or cd.dark <= 5.0
         st = es[1] if clipped else es[0]
@@ -92,24 +92,50 @@ def detect_frame(image, search, settings, lut):
             bounds[k] = cd.median_x[k]
         e[0, 0], e[0, 1], e[1, 0], e[1, 1] = cd.top1, cd.bottom1, cd.top2, cd.bottom2
         box = linear_box(h, w, cd.top1, cd.bottom1, cd.top2, cd.bottom2, bounds[0], bounds[3])
-        for k in range(4):
-            t.box[k] = box[k]
+        results = np.zeros(2, EXACT_RESULT)  # its measurement on the frame's pixels, on the linearized window
+        linear = False
         if s.srgb:
-            measure_lut_into(results[j, 1], image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)
-            t.linear = True
+            measure_lut_into(results[1], image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)
+            linear = True
         else:
-            r = results[j, 0]
+            r = results[0]
             measure_into(r, image, stack_rows, bounds, e, cd.positive, cam, tc, st)
             if (s.auto_response and r.found and not clipped and r.edge_bias > 0.5 * s.encoded_shift
                     and r.edge_bias > s.encoded_shift * at_least(r.blur, 0.5)):
-                lin = results[j, 1]
+                lin = results[1]
                 measure_lut_into(lin, image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)
-                t.linear = lin.found  # the encoded edges made a target, the linear ones do not: keep them
-        r = results[j, 1] if t.linear else results[j, 0]
-        t.status = decide(r, s, saturated, clipped)
-        t.wide = t.status == FrameStatus.REFINE and saturated and uncertain(r, s)
+                linear = lin.found  # the encoded edges made a target, the linear ones do not: keep them
+        r = results[1] if linear else results[0]
+        status = decide(r, s, saturated, clipped)
+        row = table[j]
+        row[FusedColumn.STATUS] = status.value
+        row[FusedColumn.WIDE] = status == FrameStatus.REFINE and saturated and uncertain(r, s)
+        row[FusedColumn.LINEAR] = linear
+        row[FusedColumn.CANDIDATE] = i
+        row[FusedColumn.ROW0] = stack_rows[0]
+        row[FusedColumn.ROW1] = stack_rows[stack_rows.size - 1]
+        row[FusedColumn.X0] = sr.x[cd.start, 0]
+        row[FusedColumn.POSITIVE] = cd.positive
+        row[FusedColumn.DARK] = cd.dark
+        row[FusedColumn.BRIGHT] = cd.bright
+        r0, r1, c0, c1 = box
+        row[FusedColumn.R0], row[FusedColumn.R1], row[FusedColumn.C0], row[FusedColumn.C1] = r0, r1, c0, c1
+        if not linear:  # (the window's pixels moved back to the frame's)
+            r0, c0 = 0, 0
+        row[FusedColumn.EDGE0], row[FusedColumn.EDGE1] = r.edge0 + c0, r.edge1 + c0
+        row[FusedColumn.EDGE2], row[FusedColumn.EDGE3] = r.edge2 + c0, r.edge3 + c0
+        row[FusedColumn.BAR_CX1], row[FusedColumn.BAR_CX2] = r.bar_cx1 + c0, r.bar_cx2 + c0
+        row[FusedColumn.TOP1], row[FusedColumn.TOP2] = r.top1 + r0, r.top2 + r0
+        row[FusedColumn.BOTTOM1], row[FusedColumn.BOTTOM2] = r.bottom1 + r0, r.bottom2 + r0
+        row[FusedColumn.DISTANCE], row[FusedColumn.BETA], row[FusedColumn.ALPHA] = r.distance, r.beta, r.alpha
+        row[FusedColumn.Z], row[FusedColumn.X], row[FusedColumn.HEIGHT] = r.z, r.x, r.height
+        row[FusedColumn.EDGE_BIAS], row[FusedColumn.ALPHA1], row[FusedColumn.ALPHA2] = r.edge_bias, r.alpha1, r.alpha2
+        row[FusedColumn.N_SOLUTIONS], row[FusedColumn.CHI2], row[FusedColumn.BLUR] = r.n_solutions, r.chi2, r.blur
+        for a in range(3):
+            for b in range(3):
+                row[FusedColumn.COV00 + 3 * a + b] = r.cov[a, b]
         j += 1
-    return sr, targets, results
+    return sr, table
 
 
 @jit

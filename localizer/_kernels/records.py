@@ -25,11 +25,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "FRAME_TARGET", "INTRINSICS", "MEASURE_SETTINGS",
-           "N_REASONS", "REASONS", "SEARCH_COUNTS", "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings",
-           "FitEnds", "FitGeometry", "FitStatus", "FrameStatus", "Intrinsics", "Levels", "MeasureSettings",
-           "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest", "SearchResult",
-           "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record", "record_dtype"]
+__all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "MEASURE_SETTINGS", "N_REASONS", "REASONS",
+           "SEARCH_COUNTS", "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitEnds",
+           "FitGeometry", "FitStatus", "FrameStatus", "FusedColumn", "FusedTarget", "Intrinsics", "Levels",
+           "MeasureSettings", "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest",
+           "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record",
+           "record_dtype"]
 
 
 # ------------------------------------------------------------------ inputs
@@ -292,12 +293,61 @@ EXACT_RESULT = np.dtype([
 ])
 
 
-#: what the fused frame call decided about one verified stack: its index into the candidates,
-#: a :class:`FrameStatus`, which of its two measurements to take (0: on the frame's pixels, 1: on
-#: the sRGB-linearized window ``box`` = (r0, r1, c0, c1), whose coordinates are the window's),
-#: and whether a refinement should start from several places (an uncertain saturated target)
-FRAME_TARGET = np.dtype([("candidate", np.int64), ("status", np.int64), ("linear", np.bool_), ("wide", np.bool_),
-                         ("box", np.int64, (4,))])
+class FusedTarget(NamedTuple):
+    """One verified stack as the fused frame call (:func:`localizer._kernels.frame.detect_frame`)
+    leaves it: a row of its ``(V, len(FusedTarget._fields))`` float64 table (columns
+    :class:`FusedColumn`; a table of floats crosses into Python as one list per row, where
+    records would make an array of every sub-array field). Counts, codes and flags are whole
+    numbers; pixels are the frame's (those measured on the linearized window moved back)."""
+    status: float  # a FrameStatus
+    wide: float  # 1: a refinement starts from several places (an uncertain saturated target)
+    linear: float  # 1: measured on the sRGB-linearized window (r0, r1, c0, c1)
+    candidate: float  # index into the search's candidates
+    row0: float  # first and last row of the stack
+    row1: float
+    x0: float  # first column of the triple on its first row (with row0, the reports' order)
+    positive: float  # 1: black bars on white
+    dark: float  # grey levels of the stack (the frame's)
+    bright: float
+    edge0: float  # px, the four vertical edges, left to right
+    edge1: float
+    edge2: float
+    edge3: float
+    bar_cx1: float  # px, the bar centre columns
+    bar_cx2: float
+    top1: float  # px, the bars' tops and bottoms at bar_cx
+    top2: float
+    bottom1: float
+    bottom2: float
+    distance: float  # m, the pose (zeros when REJECTED for want of one)
+    beta: float  # rad
+    alpha: float  # rad
+    z: float  # m
+    x: float  # m
+    height: float  # m
+    edge_bias: float  # px
+    alpha1: float  # rad, the two roots of eq A.14
+    alpha2: float
+    n_solutions: float
+    chi2: float
+    blur: float  # px
+    cov00: float  # the covariance over (d, beta, alpha), row by row
+    cov01: float
+    cov02: float
+    cov10: float
+    cov11: float
+    cov12: float
+    cov20: float
+    cov21: float
+    cov22: float
+    r0: float  # the linearized window: rows r0:r1, columns c0:c1
+    r1: float
+    c0: float
+    c1: float
+
+
+#: the column of each :class:`FusedTarget` field in the fused call's table, by its name in capitals
+FusedColumn = IntEnum("FusedColumn", {name.upper(): i for i, name in enumerate(FusedTarget._fields)})
 
 
 class Selection(NamedTuple):

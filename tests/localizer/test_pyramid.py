@@ -70,8 +70,8 @@ def test_level_image_equals_opencv_halvings_on_windows_of_any_size():
 
 
 def _pyramid(img, cam):
-    p = dataclasses.asdict(DetectorParams(pyramid=False).resolved(cam.height, cam.width))
-    return detect_pyramid(detect_targets, img, cam, p)
+    p = DetectorParams(pyramid=False).resolved(cam.height, cam.width)
+    return detect_pyramid(lambda im, c, q: detect_targets(im, c, **dataclasses.asdict(q)), img, cam, p)
 
 
 def test_detect_targets_takes_the_pyramid_on_large_frames_only():
