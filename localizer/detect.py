@@ -8,14 +8,14 @@ import time
 import numpy as np
 
 from localizer._kernels.measure import linear_box
-from localizer._kernels.records import FrameStatus, FusedColumn
+from localizer._kernels.records import FrameStatus
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
 from localizer.exact_pose import exact_measure, exact_measure_lut, exact_pose
 from localizer.fused import FrameTargets, detect_frame, frame_plan
 from localizer.numeric import check_choice
-from localizer.observation import TargetObservation, observation_of
+from localizer.observation import TargetObservation, observation_of, pose_fields
 from localizer.params import METHODS, DetectionStats, DetectorParams
 from localizer.pyramid import LEVEL_ROWS, detect_pyramid
 from localizer.pose import PoseEstimate
@@ -30,8 +30,8 @@ from localizer.thesis_pose import thesis_pose
 #: ~0.58 px of where a sharp edge lies, a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge
 #: beyond the common shift
 CLIPPED_FLOOR = 0.17
-#: the first covariance column of a fused call's table
-COV = int(FusedColumn.COV00)
+#: :class:`FrameStatus` codes as plain ints (compared with a fused call's table, floats)
+REJECTED, REFINE = int(FrameStatus.REJECTED), int(FrameStatus.REFINE)
 #: ``response="auto"``: a target's pixels are taken as sRGB-encoded (and linearized, :func:`_exact`)
 #: when the exact fit's common shift of every edge towards its dark side exceeds this share of the
 #: edges' blur sd (px, at least 0.5). On the envelope benchmark's frames the share is 0.22-0.41
@@ -116,8 +116,11 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         raise ValueError(f"target must be a localizer.TargetSpec, got {type(target).__name__}")
     img = as_gray(image, camera)
     try:
-        shape = img.shape if any(params.get(n) is None for n in RESOLVED_FIELDS) else None
-        p = _resolved_params(tuple(sorted(params.items())), shape)
+        if not params:  # (the defaults)
+            p = _resolved_params((), img.shape)
+        else:
+            shape = img.shape if any(params.get(n) is None for n in RESOLVED_FIELDS) else None
+            p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
     return _detect(img, camera, p, target, method, stats, t0)
@@ -331,7 +334,7 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
         if est is None:
             return None
     return observation_of(edges, cxs, top, bot, (int(v.rows[0]), int(v.rows[-1])), v.dark, v.bright, v.polarity,
-                        method, est)
+                          method, pose_fields(est))
 
 
 def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams, f: FrameTargets,
@@ -340,18 +343,20 @@ def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParam
     top to bottom, left to right: each ``ACCEPTED`` one, and each ``REFINE`` one refined and
     checked by :func:`localizer.target_finish.finish` (as :func:`_exact` would); ``REJECTED`` ones
     counted as ``st.rejected["pose"]``."""
-    found = f.targets
-    if len(found) > 1:  # (the search's order: top to bottom, left to right, as find_stacks)
-        found = sorted(found, key=lambda t: (t.row0, t.x0))
+    found = enumerate(f.targets)
+    if len(f.targets) > 1:  # (the search's order: top to bottom, left to right, as find_stacks)
+        found = sorted(found, key=lambda jt: (jt[1].row0, jt[1].x0))
     out = []
-    for t in found:
-        if t.status == FrameStatus.REJECTED:
+    for j, t in found:
+        status = t.status
+        if status == REJECTED:
             if st is not None:
                 st.reject("pose")
             continue
-        est = PoseEstimate(t.distance, t.beta, t.alpha, t.z, t.x, t.height, np.array(t[COV:COV + 9]).reshape(3, 3),
-                           (t.alpha1, t.alpha2), t.n_solutions > 1, t.edge_bias, math.sqrt(t.chi2 / 3.0), t.blur)
-        if t.status == FrameStatus.REFINE:
+        cov = f.covariances[j]
+        pose = (t.distance, t.beta, t.alpha, t.z, t.x, t.height, cov, (t.alpha1, t.alpha2), t.n_solutions > 1,
+                t.edge_bias, math.sqrt(t.chi2 / 3.0))
+        if status == REFINE:
             v = candidate_stack(f.rows, f.x, f.candidates[int(t.candidate)].tolist())
             pixels, pending = img, None
             if t.linear:
@@ -359,6 +364,7 @@ def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParam
 
                 box = (int(t.r0), int(t.r1), int(t.c0), int(t.c1))
                 pixels, pending = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR), (camera, v, box)
+            est = PoseEstimate(*pose, t.blur)
             try:
                 est = finish(pixels, camera, target, v, p, est, t.blur, t.bright >= 250.0, pending)
             except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
@@ -367,9 +373,10 @@ def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParam
                 if st is not None:
                     st.reject("pose")
                 continue
+            pose = pose_fields(est)
         out.append(observation_of((t.edge0, t.edge1, t.edge2, t.edge3), (t.bar_cx1, t.bar_cx2), (t.top1, t.top2),
                                   (t.bottom1, t.bottom2), (int(t.row0), int(t.row1)), t.dark, t.bright,
-                                  "positive" if t.positive else "negative", "exact", est))
+                                  "positive" if t.positive else "negative", "exact", pose))
     return out
 
 

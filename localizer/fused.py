@@ -16,11 +16,14 @@ from typing import NamedTuple
 import numpy as np
 
 from localizer._kernels import frame
-from localizer._kernels.records import FusedTarget, MeasureSettings, as_record
+from localizer._kernels.records import FusedColumn, FusedTarget, MeasureSettings, as_record
 from localizer.params import DetectionStats, DetectorParams
 from localizer.recognize import add_counts, search_settings
 
 __all__ = ["FramePlan", "FrameTargets", "detect_frame", "frame_plan"]
+
+#: the first covariance column of the fused call's table (9 columns, row by row)
+COV = int(FusedColumn.COV00)
 
 
 class FramePlan(NamedTuple):
@@ -34,12 +37,14 @@ class FramePlan(NamedTuple):
 class FrameTargets(NamedTuple):
     """What :func:`detect_frame` found: the search's rows ``(N,)`` and run boundaries ``(N, 4)``
     of its candidates' lines, the candidates (CANDIDATE records), and per verified stack a
-    :class:`~localizer._kernels.records.FusedTarget` (:func:`localizer._kernels.frame.detect_frame`)."""
+    :class:`~localizer._kernels.records.FusedTarget` (:func:`localizer._kernels.frame.detect_frame`)
+    and its covariance ``(3, 3)`` (over d, beta, alpha: ``covariances[j]`` is ``targets[j]``'s)."""
 
     rows: np.ndarray
     x: np.ndarray
     candidates: np.ndarray
     targets: list[FusedTarget]
+    covariances: np.ndarray  # (V, 3, 3)
 
 
 @functools.lru_cache(maxsize=64)
@@ -70,4 +75,5 @@ def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: Det
     sr, table = frame.detect_frame(image, plan.search, plan.measure, lut)
     if stats is not None:
         add_counts(stats, sr.counts)
-    return FrameTargets(sr.rows, sr.x, sr.candidates, [FusedTarget._make(t) for t in table.tolist()])
+    return FrameTargets(sr.rows, sr.x, sr.candidates, [FusedTarget._make(t) for t in table.tolist()],
+                        table[:, COV:COV + 9].reshape(-1, 3, 3))

@@ -109,20 +109,24 @@ class TargetObservation:
 
 
 def observation_of(edges: tuple, cxs: tuple, top: tuple, bottom: tuple, rows: tuple[int, int], dark: float,
-                 bright: float, polarity: str, method: str, est) -> TargetObservation:
+                   bright: float, polarity: str, method: str, pose: tuple) -> TargetObservation:
     """The observation of a target whose edges (px: 4 columns, 2 bar centre columns, 2 tops and 2
-    bottoms) make the pose ``est`` (a :class:`PoseEstimate`); ``rows`` the (first, last) row of
-    its stack, ``dark`` and ``bright`` its grey levels."""
+    bottoms) make the pose ``pose``: ``(distance, beta, alpha, z, x, height, covariance,
+    alpha_candidates, alpha_ambiguous, edge_bias, fit_rms)`` as :class:`TargetObservation` holds
+    them (Python floats, a ``(3, 3)`` array, a pair of floats, a bool: :func:`pose_fields`);
+    ``rows`` the (first, last) row of its stack, ``dark`` and ``bright`` its grey levels."""
     ex = edges
     h1, h2 = bottom[0] - top[0], bottom[1] - top[1]
-    meas = ImageMeasurements(
-        edges_x=ex, outer_edges=(ex[0], ex[3]), h1=h1, h2=h2, delta_x=ex[3] - ex[0],
-        delta_y=0.5 * (h1 + h2), centre=(0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))),
-        bar_cx=cxs, top_y=top, bottom_y=bottom, rows=rows, n_rows=rows[1] - rows[0] + 1, dark=float(dark),
-        bright=float(bright))
-    return TargetObservation(
-        distance=float(est.distance), beta=float(est.beta), alpha=float(est.alpha), z=float(est.z),
-        x=float(est.x), height=float(est.height), polarity=polarity, method=method,
-        covariance=np.asarray(est.covariance, float), measurements=meas,
-        alpha_candidates=tuple(float(a) for a in est.alpha_candidates),
-        alpha_ambiguous=bool(est.ambiguous), edge_bias=float(est.edge_bias), fit_rms=float(est.rms))
+    meas = ImageMeasurements(ex, (ex[0], ex[3]), h1, h2, ex[3] - ex[0], 0.5 * (h1 + h2),
+                             (0.25 * sum(ex), 0.25 * (sum(top) + sum(bottom))), cxs, top, bottom, rows,
+                             rows[1] - rows[0] + 1, float(dark), float(bright))
+    distance, beta, alpha, z, x, height, cov, candidates, ambiguous, bias, rms = pose
+    return TargetObservation(distance, beta, alpha, z, x, height, polarity, method, cov, meas, candidates, ambiguous,
+                             bias, rms)
+
+
+def pose_fields(est) -> tuple:
+    """The pose of :func:`observation_of` from a :class:`localizer.pose.PoseEstimate`."""
+    return (float(est.distance), float(est.beta), float(est.alpha), float(est.z), float(est.x), float(est.height),
+            np.asarray(est.covariance, float), tuple(float(a) for a in est.alpha_candidates), bool(est.ambiguous),
+            float(est.edge_bias), float(est.rms))
