@@ -67,12 +67,16 @@ def frame_plan(p: DetectorParams, fx: float, fy: float, cx: float, cy: float, ba
         max_alpha=max_alpha, max_fit_rms=max_fit_rms)))
 
 
-def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: DetectionStats | None) -> FrameTargets:
+def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: DetectionStats | None,
+                 search_image: np.ndarray | None = None) -> FrameTargets:
     """The search and measurement of ``image`` (``(H, W)`` uint8, C-contiguous) in one compiled
     call (:func:`localizer._kernels.frame.detect_frame`; ``lut`` the sRGB inverse), the search's
-    counts added to ``stats`` when given. Raises what the compiled call raises (a degenerate
-    measurement: ``ZeroDivisionError``, ...): the caller then takes the step-by-step path."""
-    sr, table = frame.detect_frame(image, plan.search, plan.measure, lut)
+    counts added to ``stats`` when given; the search on ``search_image`` when given (the frame's
+    sharpened copy, same shape), the measurement on ``image`` always. Raises what the compiled
+    call raises (a degenerate measurement: ``ZeroDivisionError``, ...): the caller then takes the
+    step-by-step path."""
+    sr, table = frame.detect_frame(image, image if search_image is None else search_image, plan.search, plan.measure,
+                                   lut)
     if stats is not None:
         add_counts(stats, sr.counts)
     return FrameTargets(sr.rows, sr.x, sr.candidates, [FusedTarget._make(t) for t in table.tolist()],

@@ -32,11 +32,14 @@ N_FIELDS = len(FusedTarget._fields)
 
 
 @jit
-def detect_frame(image, search, settings, lut):
-    """The search and the measurement of every verified stack of ``image``.
+def detect_frame(image, search_image, search, settings, lut):
+    """The search of ``search_image`` and the measurement of every verified stack on ``image``.
 
     Args:
         image: ``(H, W)`` uint8 grey frame, C-contiguous.
+        search_image: ``(H, W)`` uint8, the frame the search runs on: ``image`` itself, or its
+            sharpened copy (:func:`localizer.sharpen.unsharp`; the stacks' positions, bar ends and
+            grey levels are then those of the copy, the edges and the pose those of ``image``).
         search: ``(1,)`` :data:`~localizer._kernels.records.SEARCH_SETTINGS` record.
         settings: ``(1,)`` :data:`~localizer._kernels.records.MEASURE_SETTINGS` record.
         lut: ``(256,)`` uint8, the sRGB inverse (:data:`localizer.detect.SRGB_TO_LINEAR`).
@@ -57,7 +60,7 @@ def detect_frame(image, search, settings, lut):
     ``ACCEPTED`` when in front of the camera, ``|alpha| < max_alpha``, its normalised residual
     below ``max_fit_rms`` and its covariance finite.
     """
-    sr = recognize(image, search)
+    sr = recognize(search_image, search)
     cand = sr.candidates
     nv = 0
     for i in range(cand.size):
