@@ -20,7 +20,7 @@ from localizer.params import METHODS, DetectionStats, DetectorParams
 from localizer.pyramid import LEVEL_ROWS, detect_pyramid
 from localizer.pose import PoseEstimate
 from localizer.recognize import candidate_stack, find_stacks
-from localizer.sharpen import unsharp
+from localizer.sharpen import GAINS, unsharp_copies
 from localizer.subpixel_edges import subpixel_edges
 from localizer.target import TargetSpec
 from localizer.target_finish import MAX_ALPHA, MAX_FIT_RMS, SRGB_TO_LINEAR, finish, window_parts
@@ -53,6 +53,19 @@ MAX_SHIFT_SHARE = 0.75
 #: fit within their noise (blur3, the blurriest condition of the envelope benchmark, seeds 0-2: 99 %
 #: of 893 targets below 0.90, the largest 1.13; the 19 found only on the copy over seeds 0-4 at most 0.75)
 SHARPENED_MAX_RMS = 1.0
+#: a pose whose orientation the target's edges leave open (alpha sd above
+#: :data:`AMBIGUOUS_ALPHA_SD`, rad: the mirror pose not ruled out) is reported only if those edges fit
+#: it within :data:`AMBIGUOUS_MAX_RMS` (normalised residual), and a pose steeper than
+#: :data:`AMBIGUOUS_STEEP` (rad) within that times ``cos(alpha) / cos(AMBIGUOUS_STEEP)``. Two strokes
+#: of lettering ("II" in a label, a "0" beside a label's edge) pass every test of the search and fit a
+#: target of unknown sign (alpha sd 35-84 deg) whose bars are as narrow for their height as the
+#: strokes: steep (54-77 deg); residuals 0.99-4.62 over the envelope benchmark's seeds 0-6 and every
+#: condition (19 such finds), the ones below 1.2 all at 77 deg. True targets of open orientation:
+#: the envelope's 79 (|alpha| <= 60 deg, most of them blur3) fit within 0.34; far, dim or clipped
+#: test targets (9-20 m, |alpha| <= 46 deg) within 1.19; the steepest, 63 deg, within 0.25.
+AMBIGUOUS_ALPHA_SD = math.radians(30.0)
+AMBIGUOUS_MAX_RMS = 1.2
+AMBIGUOUS_STEEP = math.radians(60.0)
 #: the fields of :class:`DetectorParams` whose default (None) depends on the frame's size
 RESOLVED_FIELDS = ("coarse_step", "threshold_window", "min_rows")
 
@@ -154,12 +167,15 @@ def _detect(img: np.ndarray, camera: Camera, p: DetectorParams, target: TargetSp
     if not out and method == "exact" and p.sharpen_sigma > 0 and p.sharpen_amount > 0 and not p.debug_dir:
         # nothing found: the narrow runs of a steep, strongly blurred target are lost to the search,
         # which looks again on a sharpened copy (localizer.sharpen); edges and pose from the frame
-        out = []
-        for o in _search_measure(img, unsharp(img, p.sharpen_sigma, p.sharpen_amount), camera, p, target, method, st):
-            if o.fit_rms <= SHARPENED_MAX_RMS:
-                out.append(o)
-            elif st is not None:
-                st.reject("sharpened_fit")
+        # (at the gains of localizer.sharpen.GAINS in turn, until one finds a target)
+        for copy in unsharp_copies(img, p.sharpen_sigma, tuple(g * p.sharpen_amount for g in GAINS)):
+            for o in _search_measure(img, copy, camera, p, target, method, st):
+                if o.fit_rms <= SHARPENED_MAX_RMS:
+                    out.append(o)
+                elif st is not None:
+                    st.reject("sharpened_fit")
+            if out:
+                break
     if st is not None:
         st.accepted += len(out)
         st.seconds += time.perf_counter() - t0
@@ -181,7 +197,7 @@ def _search_measure(img: np.ndarray, search_img: np.ndarray, camera: Camera, p: 
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
             found = None  # a degenerate measurement: step by step, each target on its own
     if found is not None:
-        return _drop_shared_bars(_fused(img, camera, target, p, found, st), st)
+        return _drop_shared_bars(_unambiguous(_fused(img, camera, target, p, found, st), st), st)
     out: list[TargetObservation] = []
     stacks, verified = find_stacks(search_img, camera, target, p, st, keep_candidates=bool(p.debug_dir))
     for v in verified:
@@ -194,12 +210,25 @@ def _search_measure(img: np.ndarray, search_img: np.ndarray, camera: Camera, p: 
                 st.reject("pose")
             continue
         out.append(obs)
-    out = _drop_shared_bars(out, st)
+    out = _drop_shared_bars(_unambiguous(out, st) if method == "exact" else out, st)
     if p.debug_dir:
         from localizer.annotation import write_debug_images
 
         write_debug_images(p.debug_dir, img, camera, p, stacks, verified, out)
     return out
+
+
+def _unambiguous(found: list[TargetObservation], st: DetectionStats | None) -> list[TargetObservation]:
+    """``found`` without the poses of open orientation that fit badly (:data:`AMBIGUOUS_ALPHA_SD`)."""
+    keep = []
+    for o in found:
+        limit = AMBIGUOUS_MAX_RMS * min(1.0, math.cos(o.alpha) / math.cos(AMBIGUOUS_STEEP))
+        if o.covariance[2][2] > AMBIGUOUS_ALPHA_SD ** 2 and o.fit_rms > limit:
+            if st is not None:
+                st.reject("ambiguous_fit")
+            continue
+        keep.append(o)
+    return keep
 
 
 def _drop_shared_bars(found: list[TargetObservation], st: DetectionStats | None) -> list[TargetObservation]:

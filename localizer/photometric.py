@@ -11,14 +11,19 @@ blur and one pair of grey levels, and every unclipped transition pixel gives its
 edge's exact coverage once the (unseen, clipped) bright level is known. This module
 fits that whole model to the pixels of the target at once:
 
-    grey(c, r) = dark + (bright - dark) * b(c, r), observed through min(., 255)
+    grey(c, r) = (dark + (bright - dark) * b(c, r)) * (1 + slope * s(c)), observed through min(., 255)
 
 with ``b`` the blurred box-pixel fraction of the bright paint at column ``c``, row
 ``r``: ``1 - bars`` for a positive target (black bars on white), ``bars`` for a
 negative one, where ``bars(c, r) = (Fx1(c) + Fx2(c)) * Fy(c, r)``: ``Fx`` the
 fractions of the pixel between each bar's two vertical edges, ``Fy`` the fraction
 between the top and bottom lines of the target at that column, both blurred by one
-sampled Gaussian of sd ``sigma`` on the pixel grid (:func:`localizer._kernels.blur.blurred_step`).
+sampled Gaussian of sd ``sigma`` on the pixel grid (:func:`localizer._kernels.blur.blurred_step`),
+and ``s`` the column's place across the fitted columns (-1 at the first, +1 at the last): the light
+on a target is rarely even (a lamp's falloff, vignetting, shading), and one pair of grey levels
+over bars lit 3-7 % apart moved a blurred target's alpha by up to 6 deg (envelope benchmark,
+blur3: the bars' heights, which carry the orientation near frontal, differ by 0.09 px per degree
+at 65 rows, and the fit made up the light's difference with them).
 The geometry is the exact pose model's (:mod:`localizer._kernels.projection`): the
 target centre at ``(X, Y, Z)`` in the camera frame (m), orientation ``alpha`` (rad, thesis sign), and a point at target
 abscissa ``u`` imaging at ``x = cx + fx (X + u cos a) / (Z - u sin a)``; the tops and
@@ -27,8 +32,8 @@ the ray of column ``c`` meets the target plane.
 
 Clipped observations are censored: a pixel seen at 255 costs nothing while the model
 is at or above 255 and ``255 - model`` below it (likewise at 0); an unclipped pixel costs
-``model - grey`` with the unclipped model. Seven unknowns (X, Z, alpha, Y, dark,
-bright, sigma) by Levenberg-Marquardt with an analytic Jacobian, from the edge-based
+``model - grey`` with the unclipped model. Eight unknowns (X, Z, alpha, Y, dark,
+bright, sigma, slope) by Levenberg-Marquardt with an analytic Jacobian, from the edge-based
 pose (and the other root of eq A.14; for an uncertain start also from that pose scaled
 along its line of sight and turned by +-12 deg; the lowest cost wins). A start's fit stops
 when it reaches the basin of an earlier start's end (it would end there too) or when after
@@ -82,7 +87,7 @@ def refine_pose(image: np.ndarray, camera, target, pose: tuple[float, float, flo
             by +-12 deg), for an uncertain start; else from ``pose`` (and ``alt_alpha``) alone.
     Returns:
         ``None`` if the target has too few pixels or the fit is not finite, else
-        ``(p, n_pixels, cost)``: ``p`` (7,) = (X, Z, alpha, Y, dark, bright, sigma), the number
+        ``(p, n_pixels, cost)``: ``p`` (8,) = (X, Z, alpha, Y, dark, bright, sigma, slope), the number
         of pixels fitted and the final sum of squared (censored) residuals, grey levels^2. No
         covariance: on clipped targets the normal matrix cannot see the flat directions
         (module docstring), so callers keep the edge-based one.

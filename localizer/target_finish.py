@@ -31,10 +31,10 @@ MAX_ALPHA = math.radians(89.0)
 #: largest was 4.9
 PHOTOMETRIC_GATE = 6.0
 #: a blurred target's orientation (:func:`photometric_pose`): this share of the refinement's move
-#: from the edge-based one. On the envelope's blur3 frames (265 refined) the mean alpha error
-#: of bars >= 60 rows was 0.33 deg from the edges, 0.28 refined, 0.24 with their mean (max
-#: 1.83, 3.07, 1.83 deg); under 60 rows 0.76, 0.60, 0.40 (max 4.8, 6.2, 3.6 deg). The range
-#: stays the refinement's (mean error 2.4 mm from the edges' 5.1 mm on bars >= 60 rows)
+#: from the edge-based one. On the envelope's blur3 frames (seeds 0-6, bars >= 60 rows, the
+#: refinement with its light slope) the alpha error from the edges, their mean and the refinement:
+#: mean 0.30, 0.28, 0.28 deg, max 5.0, 2.6, 3.2 deg (without the slope the refinement's max was
+#: 9 deg, the mean's 5.9). The range stays the refinement's
 BLURRED_ALPHA_SHARE = 0.5
 #: the sRGB curve's inverse, code for code (8 bits): linear light of an sRGB-encoded grey level
 SRGB_TO_LINEAR = np.clip(np.rint(255.0 * np.where(np.arange(256) <= 10.31475, np.arange(256) / (255.0 * 12.92),
@@ -118,10 +118,9 @@ def photometric_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, est
     cov = est.covariance
     if blurred:  # two models of a blurred target's edges that disagree: at least as uncertain as their difference
         cov = cov + np.outer(dv, dv)
-        # the orientation rests on sub-pixel differences of the bars' widths and heights, where the
-        # pixel model's error at this blur (not pinned down; one light level over unevenly lit
-        # bars is a suspect) moves its alpha by as much as the edges' noise (3.6 deg, 60 of its own
-        # sd, on an 84-row target at 3 px), the two errors nearly independent (blur3, 265 frames:
-        # correlation -0.2 to 0.3): their mean (:data:`BLURRED_ALPHA_SHARE`)
+        # the orientation rests on sub-pixel differences of the bars' widths and heights, where what
+        # the pixel model still leaves out at this blur (light that is not linear across the
+        # target, the wall's glow into the margins) moves its alpha by about as much as the edges'
+        # noise, the two errors nearly independent: their mean (:data:`BLURRED_ALPHA_SHARE`)
         alpha = est.alpha + BLURRED_ALPHA_SHARE * (alpha - est.alpha)
     return dataclasses.replace(est, distance=d, beta=beta, alpha=alpha, z=Z, x=X, height=Y, covariance=cov)

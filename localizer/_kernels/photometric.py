@@ -9,8 +9,9 @@ import numpy as np
 
 from localizer._jit import jit
 from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction, sampled_step
-from localizer._kernels.projection import bar_edge_u, edge_x, edge_x_jacobian, plane, ray_inverse_range
-from localizer._kernels.records import ColumnModel, FitEnds, Refinement, Selection
+from localizer._kernels.photometric_select import select
+from localizer._kernels.projection import bar_edge_u, edge_x_jacobian, plane, ray_inverse_range
+from localizer._kernels.records import ColumnModel, FitEnds, Refinement
 
 #: the fraction of the printed margin (from the bars outwards) that enters the fit
 MARGIN_SHARE = 0.5
@@ -21,6 +22,9 @@ MAX_LINES = 24
 #: smallest and largest blur sd of the model (px)
 SIGMA_MIN = 0.2
 SIGMA_MAX = 4.0
+#: the fit's unknowns: X, Z, alpha, Y (m, rad), dark, bright (grey levels), sigma (px) and the
+#: illumination's slope across the target (share of the level per half target width)
+NP = 8
 #: LM iterations
 ITERATIONS = 30
 #: a fit ends when a step lowers the cost by less than this share of it (or promises less)
@@ -94,10 +98,10 @@ def columns(p, cols, cam, target, kw, kdw, out):
 
 @jit
 def evaluate(p, obs, sel, cam, target, positive, res, J, want_j):
-    """Censored residuals ``res`` (n,) (module docstring) at ``p`` (7,) = (X, Z, alpha, Y,
-    dark, bright, sigma) of the grey levels ``obs`` (n,) of the pixels ``sel``
+    """Censored residuals ``res`` (n,) (module docstring) at ``p`` (NP,) = (X, Z, alpha, Y,
+    dark, bright, sigma, slope) of the grey levels ``obs`` (n,) of the pixels ``sel``
     (:class:`~localizer._kernels.records.Selection`) and, when ``want_j``, their Jacobian
-    ``J`` (n, 7) (analytic). ``cam``: :class:`~localizer._kernels.records.Intrinsics`,
+    ``J`` (n, NP) (analytic). ``cam``: :class:`~localizer._kernels.records.Intrinsics`,
     ``target``: :class:`~localizer._kernels.records.TargetConstants`. Returns the cost (sum
     of squares, grey levels^2)."""
     return model(p, obs, sel, cam, target, positive, res, J, want_j, False)[0]
@@ -126,6 +130,11 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
     amp = p[5] - p[4]
     pol = -1.0 if positive else 1.0  # d(bright fraction) / d(bars)
     k = amp * pol
+    # the illumination's slope: the levels scale by 1 + p[7] u, u the column's place across the
+    # fit's columns (-1 at the first, +1 at the last)
+    c_mid = 0.5 * (ucols[0] + ucols[n - 1])
+    c_half = max(0.5 * (ucols[n - 1] - ucols[0]), 1.0)
+    gx = p[7]
     cost = 0.0
     w = 0
     i_prev = -1
@@ -147,7 +156,10 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
         fy_ = ft - fb
         bars = fxb[i] * fy_
         bf = 1.0 - bars if positive else bars
-        m = p[4] + amp * bf
+        u = (ucols[i] - c_mid) / c_half
+        light = 1.0 + gx * u
+        base = p[4] + amp * bf
+        m = base * light
         o = obs[q]
         if o >= CLIP:
             rr = m - 255.0 if m < 255.0 else 0.0
@@ -169,12 +181,13 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
                 for t in range(4):
                     dfy = dte * dylin[i, 0, t] - dbe * dylin[i, 1, t]
                     dfx = dfxb[i, t] if t < 3 else 0.0
-                    J[row, t] = k * (dfx * fy_ + fxb[i] * dfy)
-                J[row, 4] = 1.0 - bf
-                J[row, 5] = bf
-                J[row, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs))
+                    J[row, t] = k * (dfx * fy_ + fxb[i] * dfy) * light
+                J[row, 4] = (1.0 - bf) * light
+                J[row, 5] = bf * light
+                J[row, 6] = k * (dfxb[i, 4] * fy_ + fxb[i] * (dts - dbs)) * light
+                J[row, 7] = base * u
             else:
-                for t in range(7):
+                for t in range(NP):
                     J[row, t] = 0.0
     return cost, w
 
@@ -182,7 +195,7 @@ def model(p, obs, sel, cam, target, positive, res, J, want_j, compact):
 @jit
 def normal_equations(p, obs, sel, cam, target, positive, res, J):
     """The cost at ``p`` and the normal equations ``(J^T J, J^T r)`` of :func:`evaluate`'s
-    Jacobian, through the buffers ``res`` (n,) and ``J`` (n, 7) (censored pixels left out)."""
+    Jacobian, through the buffers ``res`` (n,) and ``J`` (n, NP) (censored pixels left out)."""
     cost, w = model(p, obs, sel, cam, target, positive, res, J, True, True)
     Jw = J[:w]
     return cost, Jw.T @ Jw, Jw.T @ res[:w]
@@ -193,12 +206,12 @@ def _solve(A, g, lam, p):
     """The damped Gauss-Newton step ``(A + lam diag(A)) step = g`` at ``p``, with the blur sd
     held where it is when it is at a bound and the step would take it further out."""
     M = A.copy()
-    for a in range(7):
+    for a in range(NP):
         M[a, a] += lam * A[a, a] + 1e-12
     step = np.linalg.solve(M, g)
     s6 = p[6] - step[6]
     if (s6 > SIGMA_MAX and p[6] >= SIGMA_MAX) or (s6 < SIGMA_MIN and p[6] <= SIGMA_MIN):
-        for a in range(7):
+        for a in range(NP):
             M[6, a] = 0.0
             M[a, 6] = 0.0
         M[6, 6] = 1.0
@@ -228,7 +241,7 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
     refined poses in their last bits (and with them the recorded accuracy figures)."""
     n = obs.size
     res = np.empty(n)
-    J = np.empty((n, 7))
+    J = np.empty((n, NP))
     if resume >= 0:  # the very numbers normal_equations would give again at this p
         cost = ends.cost[resume]
         A = ends.A[resume].copy()
@@ -238,10 +251,10 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
         if n_ends > 0 and cost > give_up * best:
             return cost, -2
     lam = 1e-3
-    q = np.empty(7)
+    q = np.empty(NP)
     for it in range(iterations):
         step = _solve(A, g, lam, p)
-        for a in range(7):
+        for a in range(NP):
             q[a] = p[a] - step[a]
         q[6] = min(max(q[6], SIGMA_MIN), SIGMA_MAX)
         q[5] = max(q[5], q[4] + 1.0)
@@ -251,7 +264,7 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
         cq, Aq, gq = normal_equations(q, obs, sel, cam, target, positive, res, J)
         if cq < cost:
             conv = cost - cq < tol * (cost + 1e-9)
-            for a in range(7):
+            for a in range(NP):
                 p[a] = q[a]
             A = Aq
             g = gq
@@ -267,10 +280,10 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
         else:
             # the step the linear model promised (2 s.g - s.A.s) is all a more damped one can give
             pred = 0.0
-            for a in range(7):
+            for a in range(NP):
                 sa = p[a] - q[a]
                 pred += 2.0 * sa * g[a]
-                for b in range(7):
+                for b in range(NP):
                     pred -= sa * A[a, b] * (p[b] - q[b])
             if pred < tol * (cost + 1e-9):
                 break
@@ -278,9 +291,9 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
             if lam > 1e7:
                 break
     if n_ends < ends.cost.size:
-        for a in range(7):
+        for a in range(NP):
             ends.g[n_ends, a] = g[a]
-            for b in range(7):
+            for b in range(NP):
                 ends.A[n_ends, a, b] = A[a, b]
     return cost, -1
 
@@ -293,92 +306,11 @@ def same_basin(p, cost, pe, Ae, ce):
     if cost < ce:
         return False
     quad = 0.0
-    for a in range(7):
+    for a in range(NP):
         da = p[a] - pe[a]
-        for b in range(7):
+        for b in range(NP):
             quad += da * Ae[a, b] * (p[b] - pe[b])
     return quad < BASIN * ce and cost - ce < BASIN * ce
-
-
-@jit
-def select(p, shape, cam, target, share, reach, max_lines):
-    """The pixels of an ``shape = (h, w)`` image in the fit at pose ``p`` (X, Z, alpha, Y, ...;
-    m, rad): inside the printed target (the bars and the gap,
-    plus ``share`` of the ``margin`` (m) around them, trimmed by one pixel so that the
-    background behind the target stays out) and within ``reach`` px of an edge; along
-    each edge at most ``max_lines`` evenly spread rows (vertical edges) or columns (tops
-    and bottoms), which bounds the work on large targets. ``margin`` is ``target.margin``.
-    Returns a :class:`~localizer._kernels.records.Selection` ``(ucols (m,), pci (n,),
-    pr (n,))``: the columns used, and each pixel's index into them and its row."""
-    h, w = shape
-    fx, fy, cx, cy = cam.fx, cam.fy, cam.cx, cam.cy
-    b, H, margin = target.bar_width, target.bar_height, target.margin
-    X, Z, a, Y = p[0], p[1], p[2], p[3]
-    c, s = math.cos(a), math.sin(a)
-    uo = 1.5 * b + share * margin
-    xl = edge_x(X, Z, c, s, -uo, cam)
-    xr = edge_x(X, Z, c, s, uo, cam)
-    c0 = max(int(math.ceil(xl + 0.5)), 0)
-    c1 = min(int(math.floor(xr - 0.5)), w - 1)
-    ncol = max(c1 - c0 + 1, 0)
-    xe = np.empty(4)
-    for k in range(4):
-        xe[k] = edge_x(X, Z, c, s, bar_edge_u(k, b), cam)
-    D = Z * c + X * s
-    vo = 0.5 * H + share * margin
-    cstride = max(1, int(math.ceil(ncol / max_lines)))
-    ucols = np.empty(ncol, np.int64)
-    cap = 64
-    pci = np.empty(cap, np.int64)
-    pr = np.empty(cap, np.int64)
-    n = 0
-    m = 0
-    for i in range(ncol):
-        j = c0 + i
-        t = (j - cx) / fx
-        z = D / (c + t * s)
-        rlo = max(int(math.ceil(cy + fy * (Y - vo) / z + 0.5)), 0)
-        rhi = min(int(math.floor(cy + fy * (Y + vo) / z - 0.5)), h - 1)
-        ytop = cy + fy * (Y - 0.5 * H) / z
-        ybot = cy + fy * (Y + 0.5 * H) / z
-        near_v = False
-        for k in range(4):
-            if abs(j - xe[k]) <= reach:
-                near_v = True
-        on_h = (i % cstride) == 0
-        if not (on_h or near_v):
-            continue
-        rstride = max(1, int(math.ceil((ybot - ytop) / max_lines)))
-        used = False
-        # away from the vertical edges only the rows near the top and the bottom can be in
-        last = rlo - 1
-        for seg in range(1 if near_v else 2):
-            if near_v:
-                lo, hi = rlo, rhi
-            else:
-                yl = ytop if seg == 0 else ybot
-                lo = max(rlo, int(math.floor(yl - reach)), last + 1)
-                hi = min(rhi, int(math.ceil(yl + reach)))
-            for r in range(lo, hi + 1):
-                near_h = abs(r - ytop) <= reach or abs(r - ybot) <= reach
-                if (near_h and (on_h or near_v)) or (near_v and (r - rlo) % rstride == 0):
-                    if n == cap:
-                        cap *= 2
-                        a1 = np.empty(cap, np.int64)
-                        a2 = np.empty(cap, np.int64)
-                        a1[:n] = pci[:n]
-                        a2[:n] = pr[:n]
-                        pci = a1
-                        pr = a2
-                    pci[n] = m
-                    pr[n] = r
-                    n += 1
-                    used = True
-            last = max(last, hi)
-        if used:
-            ucols[m] = j
-            m += 1
-    return Selection(ucols[:m].copy(), pci[:n].copy(), pr[:n].copy())
 
 
 @jit
@@ -387,9 +319,9 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     (m, rad), also from orientation ``alt_alpha`` (rad) and (``wide``) from several poses
     around ``p0``; ``start``: the :class:`~localizer._kernels.records.Levels` to start from.
     Returns a :class:`~localizer._kernels.records.Refinement`: ``(ok, p (7,), n_pixels,
-    cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma)."""
+    cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma, slope)."""
     dark0, bright0, sigma0 = start.dark, start.bright, start.sigma
-    p = np.empty(7)
+    p = np.empty(NP)
     p[:4] = p0
     sel = select(p, image.shape, cam, target, MARGIN_SHARE, REACH, MAX_LINES)
     ucols, pci, pr = sel.ucols, sel.pci, sel.pr
@@ -406,11 +338,11 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     n_alt = 1 if abs(alt_alpha - p0[2]) > 0.01 else 0
     n_scales = len(SCALES) if wide else 1
     n_starts = n_scales * (1 + n_alt) + (2 if wide else 0)
-    best = np.empty(7)
+    best = np.empty(NP)
     best_cost = np.inf
     # the ends of the starts' fits, for the later starts to recognise (lm: a start that reaches
     # an earlier one's basin stops there; a certain pose's mirror start given up when far worse)
-    ends = FitEnds(np.empty((n_starts, 7)), np.empty((n_starts, 7, 7)), np.empty((n_starts, 7)), np.empty(n_starts))
+    ends = FitEnds(np.empty((n_starts, NP)), np.empty((n_starts, NP, NP)), np.empty((n_starts, NP)), np.empty(n_starts))
     n_ends = 0
     i_best = -1
     give_up = np.inf if wide else MIRROR_GIVE_UP
@@ -430,12 +362,13 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
         p[4] = dark0
         p[5] = bright0 if bright0 < CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = min(max(sigma0, SIGMA_MIN), SIGMA_MAX)
+        p[7] = 0.0
         # iteration counts typed int64, not as the literals 6 and 30: one compiled lm, not two
         c, merged = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS), START_TOL, ends, n_ends,
                        best_cost, give_up, np.int64(-1))
         if merged != -1:
             continue
-        for a in range(7):
+        for a in range(NP):
             ends.p[n_ends, a] = p[a]
         ends.cost[n_ends] = c
         if c < best_cost:

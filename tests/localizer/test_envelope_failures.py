@@ -157,3 +157,45 @@ def test_the_compiled_linearized_window_is_the_python_one():
     assert compiled[4].covariance.tolist() == python[4].covariance.tolist()
     assert (compiled[4].distance, compiled[4].alpha, compiled[4].blur) == (python[4].distance, python[4].alpha,
                                                                            python[4].blur)
+
+
+@pytest.mark.parametrize("condition, seed, index", [("blur1", 1, 284), ("blur2", 2, 139), ("hires_1920", 3, 38),
+                                                    ("blur1", 5, 19), ("webcam", 5, 19), ("defocus", 5, 19)])
+def test_two_strokes_of_open_orientation_that_fit_badly_are_not_a_target(condition, seed, index):
+    # before: the "II" of a label (seeds 1, 3, 5) and a "0" beside a label's edge (seed 2) were
+    # reported beside the true target: steep poses (54-77 deg) of open sign (alpha sd 35-70 deg)
+    # that the strokes' edges fit with residuals of 0.99-4.06 (localizer.detect.AMBIGUOUS_ALPHA_SD)
+    from localizer import DetectionStats
+
+    frame = make_frame(BY_NAME[condition].settings, seed, index)
+    st = DetectionStats()
+    obs = detect_targets(frame.image, frame.camera, stats=st)
+    assert len(obs) == 1 and _matches(obs[0], frame.scene.pose)
+    assert st.rejected.get("ambiguous_fit", 0) >= 1
+
+
+@pytest.mark.parametrize("seed, index", [(2, 4), (5, 29), (6, 9)])
+def test_a_small_blurred_target_is_confirmed_on_its_crop(seed, index):
+    # blur3_1280 (7.5 px): steep targets (51-60 deg) 3.7-4.3 m away, 67-83 rows. Before: the crop
+    # that confirms a target of the coarse level was scanned at the frame's line spacing, three or
+    # four lines across the bars in another phase than the level's, and none passed: not reported
+    # (localizer.pyramid.CROP_LINES)
+    frame = make_frame(BY_NAME["blur3_1280"].settings, seed, index)
+    found = [o for o in detect_targets(frame.image, frame.camera) if _matches(o, frame.scene.pose)]
+    assert len(found) == 1
+    z, m2 = _errors(found[0], frame.scene.pose)
+    assert abs(found[0].distance / frame.scene.pose.distance - 1.0) < 0.02
+    assert z.max() <= 3.0 and m2 <= CHI2_3D_3SIGMA
+
+
+def test_a_target_the_crop_confirms_is_measured_there_not_on_the_search_level(monkeypatch):
+    # blur3_2448 seed 2 frame 4 (14 px, 60 deg, 4.3 m): at the frame's line spacing its crop finds
+    # nothing, and its measurement on the search level (no pixel-level refinement) is reported
+    import localizer.pyramid as pyramid
+
+    frame = make_frame(BY_NAME["blur3_2448"].settings, 2, 4)
+    error = lambda: [abs(o.distance / frame.scene.pose.distance - 1.0)  # noqa: E731
+                     for o in detect_targets(frame.image, frame.camera) if _matches(o, frame.scene.pose)]
+    assert len(error()) == 1 and error()[0] < 0.02
+    monkeypatch.setattr(pyramid, "CROP_LINES", 1)  # lines as far apart as the frame's (11 level rows)
+    assert len(error()) == 1 and error()[0] > 0.02

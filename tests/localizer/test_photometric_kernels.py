@@ -7,7 +7,7 @@ from numba import njit
 
 from localizer import Camera, TargetPose, TargetSpec
 from localizer._kernels.blur import ANALYTIC_SD, blur_weights, closed_step, edge_fraction, gauss_cdf_pdf
-from localizer._kernels.photometric import (ITERATIONS, MARGIN_SHARE, MAX_LINES, MIRROR_GIVE_UP, REACH, SIGMA_MAX,
+from localizer._kernels.photometric import (ITERATIONS, MARGIN_SHARE, MAX_LINES, MIRROR_GIVE_UP, NP, REACH, SIGMA_MAX,
                                             START_ITERATIONS, START_TOL, TOL, evaluate, lm, normal_equations, select)
 from localizer._kernels.records import FitEnds, Intrinsics, TargetConstants
 from localizer.synthetic import render_frame
@@ -89,7 +89,7 @@ def _setup(rng, blur, lighting="normal"):
     c = pose.centre
     intr = Intrinsics(cam.fx, cam.fy, cam.cx, cam.cy)
     tc = TargetConstants(T.bar_width, T.bar_height, T.margin)
-    p = np.array([c[0], c[2], pose.alpha, c[1], 20.0, 230.0 if lighting == "normal" else 300.0, blur])
+    p = np.array([c[0], c[2], pose.alpha, c[1], 20.0, 230.0 if lighting == "normal" else 300.0, blur, 0.0])
     sel = select(p, img.shape, intr, tc, MARGIN_SHARE, REACH, MAX_LINES)
     obs = img[sel.pr, sel.ucols[sel.pci]].astype(float)
     return p, obs, sel, intr, tc
@@ -97,12 +97,13 @@ def _setup(rng, blur, lighting="normal"):
 
 def test_closed_form_jacobian_matches_finite_differences(rng):
     p, obs, sel, intr, tc = _setup(rng, 2.0)
+    p[7] = 0.04  # light falling off across the target: every column of J scales with it
     n = obs.size
     for positive in (True, False):
         args = (obs, sel, intr, tc, positive)
-        res, J = np.empty(n), np.empty((n, 7))
+        res, J = np.empty(n), np.empty((n, NP))
         evaluate(p, *args, res, J, True)
-        steps = [1e-6 * p[1], 1e-6 * p[1], 1e-6, 1e-6 * p[1], 1e-4, 1e-4, 1e-6]
+        steps = [1e-6 * p[1], 1e-6 * p[1], 1e-6, 1e-6 * p[1], 1e-4, 1e-4, 1e-6, 1e-6]
         for k, h in enumerate(steps):
             rp, rm = np.empty(n), np.empty(n)
             qp, qm = p.copy(), p.copy()
@@ -119,9 +120,9 @@ def test_normal_equations_are_those_of_the_jacobian(rng):
         p, obs, sel, intr, tc = _setup(rng, blur, lighting)
         n = obs.size
         for positive in (True, False):
-            res, J = np.empty(n), np.empty((n, 7))
+            res, J = np.empty(n), np.empty((n, NP))
             cost = evaluate(p, obs, sel, intr, tc, positive, res, J, True)
-            c2, A, g = normal_equations(p, obs, sel, intr, tc, positive, np.empty(n), np.empty((n, 7)))
+            c2, A, g = normal_equations(p, obs, sel, intr, tc, positive, np.empty(n), np.empty((n, NP)))
             assert c2 == cost
             assert np.allclose(A, J.T @ J, rtol=1e-12, atol=1e-9 * np.abs(A).max())
             assert np.allclose(g, J.T @ res, rtol=1e-12, atol=1e-9 * np.abs(g).max())
@@ -189,7 +190,7 @@ def test_blur_is_held_at_its_bound(rng):
 
 
 def _ends(k=2):
-    return FitEnds(np.empty((k, 7)), np.empty((k, 7, 7)), np.empty((k, 7)), np.empty(k))
+    return FitEnds(np.empty((k, NP)), np.empty((k, NP, NP)), np.empty((k, NP)), np.empty(k))
 
 
 def test_lm_resumes_from_an_end_bit_for_bit(rng):
@@ -203,7 +204,7 @@ def test_lm_resumes_from_an_end_bit_for_bit(rng):
         c, merged = lm(p, *args, np.int64(START_ITERATIONS), START_TOL, ends, 0, np.inf, np.inf, np.int64(-1))
         assert merged == -1
         ends.p[0], ends.cost[0] = p, c
-        c2, A, g = normal_equations(p, *args, np.empty(obs.size), np.empty((obs.size, 7)))
+        c2, A, g = normal_equations(p, *args, np.empty(obs.size), np.empty((obs.size, NP)))
         assert c2 == c and np.array_equal(A, ends.A[0]) and np.array_equal(g, ends.g[0])
         q1, q2 = p.copy(), p.copy()
         r1 = lm(q1, *args, np.int64(ITERATIONS), TOL, _ends(), 0, np.inf, np.inf, np.int64(-1))
@@ -222,7 +223,7 @@ def test_a_far_worse_start_is_given_up_before_its_first_step(rng):
     ends.p[0], ends.cost[0] = p, c
     far = p.copy()
     far[2] = -far[2]  # the mirror orientation
-    c0 = evaluate(far, *args, np.empty(obs.size), np.empty((obs.size, 7)), False)
+    c0 = evaluate(far, *args, np.empty(obs.size), np.empty((obs.size, NP)), False)
     assert c0 > 2.0 * c
     q = far.copy()
     assert lm(q, *args, np.int64(START_ITERATIONS), START_TOL, ends, 1, c, 0.5 * c0 / c, np.int64(-1)) == (c0, -2)

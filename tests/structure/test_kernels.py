@@ -14,8 +14,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 #: photometric's refinement solves with np.linalg.solve, whose numba implementation has the
-#: same shape check: its slice assignments cost nothing more
-EXEMPT = {"localizer/_kernels/photometric.py"}
+#: same shape check: its slice assignments cost nothing more (photometric_select: its pixel selection)
+EXEMPT = {"localizer/_kernels/photometric.py", "localizer/_kernels/photometric_select.py"}
 MODULES = sorted([*(ROOT / "localizer" / "_kernels").glob("*.py"), ROOT / "localizer" / "smallmat.py"])
 
 
