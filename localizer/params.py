@@ -111,10 +111,12 @@ class DetectorParams:
     # to ~3 ms for a saturated one that falls short). The thresholds: of 7,792 targets of the
     # envelope benchmark's 512 x 480 frames (seeds 0 and 1, 9 and 17 conditions), the 7,495
     # under both were at most 1.49 % off in range and 1.83 deg in orientation (bars of 60 rows or
-    # more) from their edges alone (the floors: 2 % and 3 deg); they refine 24-30 % of blur3's
-    # targets (sd 3 px), 5-8 % of saturated ones (BENCHMARKS.md: the speed and accuracy each costs)
+    # more) from their edges alone (the floors: 2 % and 3 deg); seeds 2-6 then held one at 2.15 %
+    # with a range sd of 0.73 % (blur3, seed 2, frame 21; refined: 0.22 %), so the range's is
+    # 0.7 %: it refines 30-38 % of blur3's targets (sd 3 px; 24-29 % at 0.8 %), 5-8 % of saturated
+    # ones (BENCHMARKS.md: the speed and accuracy each costs)
     photometric: str = "auto"
-    refine_range_sd: float = 0.008  # share of the range ("auto": refine above it)
+    refine_range_sd: float = 0.007  # share of the range ("auto": refine above it)
     refine_alpha_sd: float = math.radians(2.0)  # rad ("auto": refine above it)
     # --- the camera's response (grey level against light), for the edges and the refinement:
     # "linear" (machine-vision and raw frames: the pixels as they are); "srgb" (most USB, phone
