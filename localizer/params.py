@@ -133,8 +133,9 @@ class DetectorParams:
     pyramid: bool = True
     # --- blurred frames: where the "exact" search of a frame (or of a large frame's coarse level or
     # crop) finds no target, it searches again an unsharp-masked copy of it (localizer.sharpen:
-    # Gaussian sd `sharpen_sigma` px, gain `sharpen_amount`, then twice that: sharpen.GAINS) and measures what that finds on the
-    # frame's own pixels (kept if those edges fit a target, detect.SHARPENED_MAX_RMS): steep targets
+    # Gaussian sd `sharpen_sigma` px, gain `sharpen_amount`, then twice that: sharpen.GAINS) and
+    # measures what that finds on the frame's own pixels (kept if those edges fit a target,
+    # detect.SHARPENED_MAX_RMS): steep targets
     # under the envelope's 3 px of blur, whose narrow runs the search loses (19 of the 22 misses of
     # the envelope benchmark's seeds 0-4 found again). 0 (either): no second search
     sharpen_sigma: float = 3.0  # px

@@ -223,7 +223,7 @@ def _solve(A, g, lam, p):
 
 @jit
 def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, give_up, resume):
-    """Levenberg-Marquardt of :func:`evaluate` from ``p`` (7,), updated in place, at most
+    """Levenberg-Marquardt of :func:`evaluate` from ``p`` (NP,), updated in place, at most
     ``iterations`` steps, ended when a step lowers the cost by less than ``tol`` of it or the
     linear model promises less than that. The ends of earlier fits of the same pixels
     (``ends``: :class:`~localizer._kernels.records.FitEnds`, ``n_ends`` of them filled): a fit
@@ -300,7 +300,7 @@ def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, 
 
 @jit
 def same_basin(p, cost, pe, Ae, ce):
-    """Whether ``p`` (cost ``cost``) lies in the bowl of an earlier fit's end ``pe`` (7,) (normal
+    """Whether ``p`` (cost ``cost``) lies in the bowl of an earlier fit's end ``pe`` (NP,) (normal
     matrix ``Ae``, cost ``ce``): no lower, and both its cost and the end's quadratic model of it
     (``ce + d^T Ae d``, ``d = p - pe``) within :data:`BASIN` of ``ce``."""
     if cost < ce:
@@ -318,7 +318,7 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     """Fit of the target in ``image`` (H, W) uint8 from the pose ``p0`` (4,) = (X, Z, alpha, Y)
     (m, rad), also from orientation ``alt_alpha`` (rad) and (``wide``) from several poses
     around ``p0``; ``start``: the :class:`~localizer._kernels.records.Levels` to start from.
-    Returns a :class:`~localizer._kernels.records.Refinement`: ``(ok, p (7,), n_pixels,
+    Returns a :class:`~localizer._kernels.records.Refinement`: ``(ok, p (NP,), n_pixels,
     cost)`` with ``p`` = (X, Z, alpha, Y, dark, bright, sigma, slope)."""
     dark0, bright0, sigma0 = start.dark, start.bright, start.sigma
     p = np.empty(NP)

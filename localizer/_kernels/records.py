@@ -375,15 +375,15 @@ class FitEnds(NamedTuple):
     gradient of :func:`~localizer._kernels.photometric.normal_equations` there, and the cost
     (grey levels^2)."""
 
-    p: np.ndarray  # (k, 7)
-    A: np.ndarray  # (k, 7, 7)
-    g: np.ndarray  # (k, 7)
+    p: np.ndarray  # (k, NP), NP = photometric.NP = 8
+    A: np.ndarray  # (k, NP, NP)
+    g: np.ndarray  # (k, NP)
     cost: np.ndarray  # (k,)
 
 
 class Refinement(NamedTuple):
-    """Result of a photometric fit: whether it ran, the parameters (7,) = (X, Z, alpha, Y,
-    dark, bright, sigma), the number of pixels fitted and the final cost (grey levels^2)."""
+    """Result of a photometric fit: whether it ran, the parameters (8,) = (X, Z, alpha, Y,
+    dark, bright, sigma, light slope), the number of pixels fitted and the final cost (grey levels^2)."""
 
     ok: bool
     p: np.ndarray
