@@ -127,6 +127,11 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
         **params: any field of :class:`DetectorParams` (thesis defaults).
     Returns:
         A list of :class:`TargetObservation`, top to bottom, left to right.
+
+    Ctrl-C: a KeyboardInterrupt raised while a compiled kernel hands back its results (numba does
+    that through Python code) can crash the interpreter (about 1 interrupt in 40 of a loop over
+    frames). A loop to be stopped with Ctrl-C holds SIGINT back over each call (a handler that only
+    notes it, and the signal blocked in the thread) and raises it after, as ``agvsim localize`` does.
     """
     t0 = time.perf_counter()
     if method not in METHODS:

@@ -182,13 +182,15 @@ class _Run:
             image_index += not inp.is_stream
 
     def frame(self, frame, n: int, kind: str) -> None:
-        """Localize one frame, then count it and write its rows and annotation with Ctrl-C held back
-        (an interrupted run has each frame done whole, or not at all)."""
+        """Localize one frame, then count it and write its rows and annotation, with Ctrl-C held back
+        throughout: an interrupted run has each frame done whole, or not at all, and no compiled
+        call is cut short. (numba hands a kernel's results back through Python code, and a
+        KeyboardInterrupt raised there crashes the interpreter: 1 in ~40 interrupts of a video
+        ended in a segmentation fault while the detection was not held back.)"""
         from agvsim.commands.workers import sigint_blocked
 
-        stream = kind in ("folder", "video")
-        frame, obs, ms = self._detect(frame, stream)
         with sigint_blocked():
+            frame, obs, ms = self._detect(frame, kind in ("folder", "video"))
             self._commit(frame, obs, ms, n, kind)
 
     def _detect(self, frame, stream: bool):

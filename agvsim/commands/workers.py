@@ -55,12 +55,15 @@ def _call(task):
 
 @contextmanager
 def sigint_blocked() -> Iterator[None]:
-    """A Ctrl-C held back while worker processes are started, and raised on leaving.
+    """A Ctrl-C held back while the block runs, and raised on leaving.
 
     SIGINT is blocked in this thread, so a worker (which inherits the mask) cannot receive it
     while it starts up, and this process's handler only notes it meanwhile (another thread, as
     a BLAS thread, may take the signal for the process): the block's work (a pool started and
-    assigned) is never cut short half-way. Outside the main thread: nothing held back.
+    assigned, a frame localized and written) is never cut short half-way, and no
+    KeyboardInterrupt is raised inside a compiled kernel's call (numba returns its results
+    through Python code, where one crashes the interpreter). Outside the main thread: nothing
+    held back.
     """
     import threading
 

@@ -313,6 +313,29 @@ def test_ctrl_c_keeps_the_rows_of_the_frames_done(video, tmp_path, capsys, monke
     assert [ln.split()[0][-2:] for ln in table.splitlines()[1:]] == ["#0", "#1", "#2", "#3", "#3"]
 
 
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="SIGINT held back by the thread's signal mask")
+def test_a_ctrl_c_while_a_frame_is_localized_stops_the_run_after_that_frame(video, tmp_path, capsys, monkeypatch):
+    # the signal, not an exception: held back until the frame is written, so that no KeyboardInterrupt
+    # is raised inside a compiled call (numba returns a kernel's results through Python code, where one
+    # crashed the interpreter: test_ctrl_c_on_a_long_video_leaves_whole_lines, 1 run in ~40)
+    import localizer
+
+    real, calls = localizer.detect_targets, []
+
+    def signalled(image, *args, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+            sum(range(1000))  # (Python code after the signal: a KeyboardInterrupt would be raised here)
+        return real(image, *args, **kw)
+
+    monkeypatch.setattr(localizer, "detect_targets", signalled)
+    out = tmp_path / "rows.csv"
+    rc, _, err = _run(["localize", str(video), "--out", str(out), "--no-progress"], capsys)
+    assert rc == 130 and "interrupted after 3 frames" in err, err
+    assert [r["frame"] for r in _csv_rows(out.read_text())] == ["0", "1"]  # frames 0-2 whole (2 has no target)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals as a terminal sends them")
 def test_ctrl_c_on_a_long_video_leaves_whole_lines(tmp_path):
