@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from localizer import Camera, TargetPose, TargetSpec, detect_targets
-from localizer._kernels.photometric import evaluate, select
+from localizer._kernels.photometric import NP, evaluate, select
 from localizer._kernels.records import Intrinsics, TargetConstants
 from localizer.photometric import MARGIN_SHARE, MAX_LINES, REACH
 from localizer.synthetic import in_envelope, render_frame
@@ -36,8 +36,11 @@ def test_jacobian_matches_finite_differences(rng):
     pose = TargetPose(6.0, 0.05, 25 * DEG, 0.1)
     img = render_frame(cam, pose, lighting="normal", blur=0.6, noise=1.0, background=0.5, rng=rng)
     c = pose.centre
-    for positive in (True, False):
-        p = np.array([c[0], c[2], pose.alpha, c[1], 20.0, 230.0, 0.6])
+    for positive, slope in ((True, 0.0), (False, 0.0), (True, 0.04), (False, -0.03)):
+        # (X, Z, alpha, Y, dark, bright, sigma, the light's slope): all NP unknowns, the arrays the
+        # kernel reads and writes of their full size (it does not check them)
+        p = np.array([c[0], c[2], pose.alpha, c[1], 20.0, 230.0, 0.6, slope])
+        assert p.size == NP
         intr = Intrinsics(cam.fx, cam.fy, cam.cx, cam.cy)
         tc = TargetConstants(T.bar_width, T.bar_height, T.margin)
         sel = select(p, img.shape, intr, tc, MARGIN_SHARE, REACH, MAX_LINES)
@@ -45,9 +48,9 @@ def test_jacobian_matches_finite_differences(rng):
         args = (obs, sel, intr, tc, positive)
         n = obs.size
         res = np.empty(n)
-        J = np.empty((n, 7))
+        J = np.empty((n, NP))
         evaluate(p, *args, res, J, True)
-        steps = [1e-6 * p[1], 1e-6 * p[1], 1e-6, 1e-6 * p[1], 1e-4, 1e-4, 1e-6]
+        steps = [1e-6 * p[1], 1e-6 * p[1], 1e-6, 1e-6 * p[1], 1e-4, 1e-4, 1e-6, 1e-6]
         for k, h in enumerate(steps):
             rp, rm = np.empty(n), np.empty(n)
             qp, qm = p.copy(), p.copy()
