@@ -185,8 +185,8 @@ class _Run:
         """Localize one frame, then count it and write its rows and annotation, with Ctrl-C held back
         throughout: an interrupted run has each frame done whole, or not at all, and no compiled
         call is cut short. (numba hands a kernel's results back through Python code, and a
-        KeyboardInterrupt raised there crashes the interpreter: 1 in ~40 interrupts of a video
-        ended in a segmentation fault while the detection was not held back.)"""
+        KeyboardInterrupt raised there crashes the interpreter: 2 of 96 interrupted runs over a
+        video ended in a segmentation fault while the detection was not held back.)"""
         from agvsim.commands.workers import sigint_blocked
 
         with sigint_blocked():
