@@ -195,7 +195,25 @@ def measure(frames: int, seed: int = 0, progress: bool = True) -> dict:
             # would turn it into a crash of the interpreter or a SystemError counted as the detector's
             # (agvsim.commands.workers.sigint_blocked; its signal calls fall outside the timed ones)
             with sigint_blocked():
-                _one_frame(img, cam, kind, fs, i, times, crashes, false, by_kind, crash_cases, false_cases)
+                for m in METHODS:
+                    t = time.perf_counter()
+                    try:
+                        obs = detect_targets(img, cam, method=m)
+                    except Exception as exc:
+                        times[m].append(time.perf_counter() - t)
+                        crashes[m] += 1
+                        by_kind[kind]["crashes"] += 1
+                        if len(crash_cases) < KEEP_CASES:
+                            crash_cases.append({"method": m, "kind": kind, "frame_seed": fs, "index": i,
+                                                "error": type(exc).__name__, "message": str(exc)[:200]})
+                        continue
+                    times[m].append(time.perf_counter() - t)
+                    if obs:
+                        false[m] += len(obs)
+                        by_kind[kind]["false_detections"] += len(obs)
+                        if len(false_cases) < KEEP_CASES:
+                            false_cases.append({"method": m, "kind": kind, "frame_seed": fs, "index": i,
+                                                "detections": len(obs)})
                 by_kind[kind]["frames"] += 1
                 done += 1
             bar.update(1)
@@ -217,32 +235,6 @@ def measure(frames: int, seed: int = 0, progress: bool = True) -> dict:
             "by_kind": by_kind,
             "floors": {"crashes": verdict(n_crash, "<=", 0), "false_detections": verdict(n_false, "<=", 0)},
             "reproduce": "agvsim.bench.fuzz.make_frame(kind, frame_seed)"}
-
-
-def _one_frame(img, cam, kind: str, fs: int, i: int, times: dict, crashes: dict, false: dict, by_kind: dict,
-               crash_cases: list, false_cases: list) -> None:
-    """Both methods on the fuzz frame ``img`` (kind ``kind``, seed ``fs``, index ``i``): their times,
-    crashes and false detections added to :func:`measure`'s tallies."""
-    from localizer import detect_targets
-
-    for m in METHODS:
-        t = time.perf_counter()
-        try:
-            obs = detect_targets(img, cam, method=m)
-        except Exception as exc:
-            times[m].append(time.perf_counter() - t)
-            crashes[m] += 1
-            by_kind[kind]["crashes"] += 1
-            if len(crash_cases) < KEEP_CASES:
-                crash_cases.append({"method": m, "kind": kind, "frame_seed": fs, "index": i,
-                                    "error": type(exc).__name__, "message": str(exc)[:200]})
-            continue
-        times[m].append(time.perf_counter() - t)
-        if obs:
-            false[m] += len(obs)
-            by_kind[kind]["false_detections"] += len(obs)
-            if len(false_cases) < KEEP_CASES:
-                false_cases.append({"method": m, "kind": kind, "frame_seed": fs, "index": i, "detections": len(obs)})
 
 
 def run(args) -> dict:
