@@ -14,6 +14,7 @@ from localizer._kernels.target_test import makes_target
 from localizer.camera import Camera
 from localizer.exact_pose import exact_measure, exact_measure_lut, exact_pose
 from localizer.fused import FrameTargets, detect_frame, frame_plan
+from localizer.interrupts import deferred_interrupt
 from localizer.numeric import check_choice
 from localizer.observation import TargetObservation, observation_of, pose_fields
 from localizer.params import METHODS, DetectionStats, DetectorParams
@@ -128,11 +129,9 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
     Returns:
         A list of :class:`TargetObservation`, top to bottom, left to right.
 
-    Ctrl-C: a KeyboardInterrupt raised while a compiled kernel hands back its results (numba does
-    that through Python code) can crash the interpreter (a loop over frames interrupted every
-    millisecond faulted within 12-53 interrupts). A loop to be stopped with Ctrl-C holds SIGINT back
-    over each call (a handler that only notes it, the signal blocked in the thread) and raises it
-    after, as ``agvsim localize`` does.
+    Ctrl-C: a SIGINT received during the call raises KeyboardInterrupt when the call ends
+    (:func:`localizer.interrupts.deferred_interrupt`: raised while a compiled kernel hands back
+    its results, it would crash the interpreter).
     """
     t0 = time.perf_counter()
     if method not in METHODS:
@@ -150,7 +149,8 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
             p = _resolved_params(tuple(sorted(params.items())), shape)
     except TypeError:  # an unhashable parameter value: let the dataclass report it
         p = DetectorParams.from_kwargs(**params).resolved(img.shape[0], img.shape[1])
-    return _detect(img, camera, p, target, method, stats, t0)
+    with deferred_interrupt():
+        return _detect(img, camera, p, target, method, stats, t0)
 
 
 def _detect(img: np.ndarray, camera: Camera, p: DetectorParams, target: TargetSpec, method: str,

@@ -57,29 +57,26 @@ def _call(task):
 def sigint_blocked() -> Iterator[None]:
     """A Ctrl-C held back while the block runs, and raised on leaving.
 
-    SIGINT is blocked in this thread, so a worker (which inherits the mask) cannot receive it
-    while it starts up, and this process's handler only notes it meanwhile (another thread, as
-    a BLAS thread, may take the signal for the process): the block's work (a pool started and
-    assigned, a frame localized and written) is never cut short half-way, and no
-    KeyboardInterrupt is raised inside a compiled kernel's call (numba returns its results
-    through Python code, where one crashes the interpreter). Outside the main thread: nothing
-    held back.
+    :func:`localizer.interrupts.deferred_interrupt` (this process's handler only notes a
+    SIGINT meanwhile, also one the operating system gives to another thread, as a BLAS
+    thread), and SIGINT blocked in this thread, so that a worker started in the block (which
+    inherits the mask) cannot receive it while it starts up: the block's work (a pool started
+    and assigned, a frame localized and written) is never cut short half-way. Outside the main
+    thread: nothing held back.
     """
     import threading
+
+    from localizer.interrupts import deferred_interrupt
 
     if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught: list[int] = []
-    handler = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # (a SIGINT pending here is noted too)
-        signal.signal(signal.SIGINT, handler)
-    if caught:
-        signal.raise_signal(signal.SIGINT)  # as it would have been: KeyboardInterrupt
+    with deferred_interrupt():
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # (a SIGINT pending here is noted too)
 
 
 class MetreReporter:

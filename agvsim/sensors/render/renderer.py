@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from localizer.interrupts import deferred_interrupt
 from localizer.numeric import check_number
 
 from localizer.camera import Camera
@@ -188,6 +189,11 @@ class CameraRenderer:
         if needs_rng and not isinstance(rng, np.random.Generator):
             raise ValueError("render() with noise or jitter needs rng, a numpy.random.Generator "
                              "(or use RenderConditions(noise=False, jitter=False))")
+        with deferred_interrupt():  # (a KeyboardInterrupt inside a compiled call crashes Python)
+            return self._render(pose, conditions, rng, noisy)
+
+    def _render(self, pose: tuple, conditions: RenderConditions, rng, noisy: bool) -> tuple[np.ndarray, FrameTruth]:
+        """:meth:`render` of a checked pose and conditions."""
         cam_pose = self.camera_pose(pose, conditions, rng)
         if self.backend == "raycast":
             image, depth_full = self._raycast_frame(pose, cam_pose, conditions, rng if noisy else None)
