@@ -5,7 +5,7 @@ unpickled by a Python function, a named tuple is built by its Python constructor
 arriving during a kernel's call makes Python run the SIGINT handler there, at the first
 bytecode of that code, and the KeyboardInterrupt it raises is not expected by numba's boxing:
 the interpreter crashes with a segmentation fault, or reports ``SystemError: ... returned a
-result with an exception set`` (numba issue #2324). Measured here with SIGINT sent every
+result with an exception set`` (numba has no guard against it). Measured here with SIGINT sent every
 millisecond: a loop over :func:`localizer.detect_targets` faulted within 12-53 signals, a loop
 over ``agvsim/PlantFloor-v1`` steps within about 600.
 
