@@ -135,9 +135,9 @@ class DetectorParams:
     # crop) finds no target, it searches again an unsharp-masked copy of it (localizer.sharpen:
     # Gaussian sd `sharpen_sigma` px, gain `sharpen_amount`, then twice that: sharpen.GAINS) and
     # measures what that finds on the frame's own pixels (kept if those edges fit a target,
-    # detect.SHARPENED_MAX_RMS): steep targets
-    # under the envelope's 3 px of blur, whose narrow runs the search loses (19 of the 22 misses of
-    # the envelope benchmark's seeds 0-4 found again). 0 (either): no second search
+    # detect.SHARPENED_MAX_RMS): steep targets under the envelope's 3 px of blur, whose narrow runs
+    # the search loses (19 of the 22 misses of the envelope benchmark's seeds 0-4 found again).
+    # 0 (either): no second search
     sharpen_sigma: float = 3.0  # px
     sharpen_amount: float = 1.0
     # --- misc
