@@ -31,7 +31,7 @@ loop over a matrix size known only at run time would cost several per cent).
 The first compilation in a process of one of this project's kernels prints
 :data:`COMPILE_NOTICE` on stderr (a fresh install's first call waits for it; set
 ``AGVSIM_QUIET_COMPILE=1`` to silence it); :class:`CompileCounter` counts compilations (the
-warmup reports them). Numba's IR inliner is made linear first (:mod:`localizer._numba_inline`).
+warmup reports them).
 """
 from __future__ import annotations
 
@@ -43,13 +43,8 @@ import numba
 import numba.core.event
 import numba.extending
 
-from localizer._numba_inline import linear_inline_copies
 
 __all__ = ["COMPILE_NOTICE", "CompileCounter", "borrowed", "fast_inline", "fast_jit", "inline", "jit", "prefetch", "quiet_compile_notice"]
-
-# numba copies an inlined helper's IR in time quadratic in its size (localizer._numba_inline):
-# made linear before any kernel is compiled
-linear_inline_copies()
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)

@@ -23,12 +23,6 @@ def _python(code: str, env: dict, *flags: str) -> subprocess.CompletedProcess:
                           text=True, timeout=120, cwd=env.get("XDG_CACHE_HOME", ROOT))
 
 
-def test_the_inliner_patch_applies_to_this_numba():
-    from localizer._numba_inline import linear_inline_copies
-
-    assert linear_inline_copies()  # (a numba whose inliner changed: compile times grow 2.6x, say so)
-
-
 def test_first_compilation_says_so_once_and_the_second_process_loads_the_cache(tmp_path):
     env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(ROOT)}
     first = _python(PROBE + "; from localizer.smallmat import solve; solve(np.eye(2), np.ones(2))", env)
