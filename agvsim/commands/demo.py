@@ -16,11 +16,15 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
 
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
+from localizer.numeric import wrap_angle
 
 DEFAULT_MAP = "plant_floor"
 
@@ -50,8 +54,6 @@ def register(sub) -> None:
 
 def drift_table(distance, error, heading_error, estimate_error=None, rows: int = 10) -> list[dict[str, float]]:
     """Dead-reckoning (and estimate) error at ``rows`` evenly spaced distances (SI units)."""
-    import numpy as np
-
     total = float(distance[-1]) if len(distance) else 0.0
     table = []
     for k in range(1, rows + 1):
@@ -80,17 +82,41 @@ def format_table(table: list[dict[str, float]]) -> str:
 
 
 def run(args) -> int:
-    import numpy as np
-    from agvsim.analysis.plots import error_vs_distance
-    from agvsim.analysis.topdown import TopDownView, Trajectory
+    from agvsim.world import load_map
+
+    world_map = load_map(args.map)
+    drive = _drive(args, world_map)
+    files, strip = _pictures(args, world_map, drive)
+    result = _summary(args, world_map, drive, files, strip)
+    if args.json:
+        emit_json(result)
+        return 0
+    _print_summary(args, world_map, result, drive, strip)
+    return 0
+
+
+class _Drive(NamedTuple):
+    """One demo drive: its log, the vision config, the errors against truth (m, rad: arrays over
+    the log's steps; ``estimate_error`` None without vision) and the wall seconds it took."""
+
+    log: object  # MissionLog
+    vision: object  # VisionConfig
+    error: np.ndarray  # (N,) dead reckoning's position error, m
+    heading: np.ndarray  # (N,) dead reckoning's heading error, rad in [-pi, pi)
+    estimate_error: np.ndarray | None  # (N,) the estimate's position error, m
+    table: list  # drift_table's rows
+    wall: float  # s
+    rng: np.random.Generator  # the run's generator, after the drive (the camera strip draws on)
+
+
+def _drive(args, world_map) -> _Drive:
+    """The route driven as the flags say, with a progress bar in metres."""
     from agvsim.loop.mission import MissionConfig, run_mission
     from agvsim.loop.pure_pursuit import RoutePath
     from agvsim.sensors import VisionConfig, make_source
     from agvsim.vehicle.encoders import OdometryErrorModel
     from agvsim.vehicle.simulation import SimConfig
-    from agvsim.world import load_map
 
-    world_map = load_map(args.map)
     path = RoutePath.from_route(world_map, check_route(world_map, args.route))
     total = path.length * (args.laps if path.loop else 1.0)
     config = SimConfig(odometry=OdometryErrorModel.preset(args.odometry))
@@ -98,47 +124,53 @@ def run(args) -> int:
     log(f"agvsim demo: map {world_map.name!r}, route {args.route!r} ({total:.0f} m), "
         f"odometry {args.odometry!r}, seed {args.seed}")
     bar = DistanceBar(total, disable=args.no_progress)
-    progress = bar.to  # metres along the route, each control step
-
     started = time.perf_counter()
-    estimate = estimate_error = None
     vision = VisionConfig(mount=args.camera_mount).for_map(world_map)
+    estimate_error = None
     if args.no_vision:
         mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision,
                                 vision=False, steer_on="truth")
-        run_log = run_mission(world_map, None, rng, mission, progress=progress)
+        run_log = run_mission(world_map, None, rng, mission, progress=bar.to)
     else:
         mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision)
         options = {"backend": args.backend} if args.observations == "rendered" else {}
         source = make_source(args.observations, world_map, vision, **options)
-        run_log = run_mission(world_map, source, rng, mission, progress=progress)
-        estimate = run_log.estimate
-        estimate_error = np.linalg.norm(estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
+        run_log = run_mission(world_map, source, rng, mission, progress=bar.to)
+        estimate_error = np.linalg.norm(run_log.estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
     wall = time.perf_counter() - started
     if len(run_log.time) == 0:
         bar.finish(0.0)
         raise ValueError("the run produced no steps")
     bar.finish(float(run_log.distance[-1]))  # ends at the metres driven (the summary's "Drove ... m")
     error = np.linalg.norm(run_log.odometry_pose[:, :2] - run_log.true_pose[:, :2], axis=1)
-    dth = run_log.odometry_pose[:, 2] - run_log.true_pose[:, 2]
-    heading = np.arctan2(np.sin(dth), np.cos(dth))
+    heading = wrap_angle(run_log.odometry_pose[:, 2] - run_log.true_pose[:, 2])
     table = drift_table(run_log.distance, error, heading, estimate_error)
+    return _Drive(run_log, vision, error, heading, estimate_error, table, wall, rng)
 
+
+def _pictures(args, world_map, drive: _Drive) -> tuple[dict, dict | None]:
+    """The top-down view, the error plot and the camera strip written to ``args.out``: their
+    paths by name, and the strip's record (None without frames)."""
+    from agvsim.analysis.plots import error_vs_distance
+    from agvsim.analysis.topdown import TopDownView, Trajectory
+
+    run_log = drive.log
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    view = TopDownView(world_map)
     trajectories = [Trajectory(run_log.true_pose, (30, 150, 40), "true"),
                     Trajectory(run_log.odometry_pose, (210, 40, 40), "dead reckoning")]
     ellipses = ()
-    series = {f"dead reckoning ({args.odometry})": error}
+    series = {f"dead reckoning ({args.odometry})": drive.error}
     bound = None
-    if estimate is not None:
+    if drive.estimate_error is not None:
+        estimate = run_log.estimate
         trajectories.append(Trajectory(estimate, (40, 90, 220), "EKF estimate"))
         every = max(1, len(estimate) // 40)
         ellipses = tuple((estimate[i, :2], 400.0 * run_log.covariance[i, :2, :2], (40, 90, 220))
                          for i in range(0, len(estimate), every))
-        series["EKF estimate"] = estimate_error
+        series["EKF estimate"] = drive.estimate_error
         bound = 2.0 * np.sqrt(np.clip(run_log.covariance[:, 0, 0] + run_log.covariance[:, 1, 1], 0, None))
+    view = TopDownView(world_map)
     image = view.render(tuple(trajectories), vehicle_pose=tuple(run_log.true_pose[-1]), ellipses=ellipses,
                         ellipse_label="2σ position ellipse (x20)")
     topdown = TopDownView.save_png(image, out / "topdown.png")
@@ -150,14 +182,20 @@ def run(args) -> int:
     if args.frames > 0:
         from agvsim.sensors.render.strip import route_poses, save_camera_strip
 
-        mount = vision.mount  # the closed loop's camera
+        mount = drive.vision.mount  # the closed loop's camera
         strip = save_camera_strip(world_map, route_poses(world_map, args.frames, route=args.route, mount=mount),
-                                  out / "camera_strip.png", mount=mount, rng=rng)
+                                  out / "camera_strip.png", mount=mount, rng=drive.rng)
         files["camera_strip"] = str(strip["path"])
+    return files, strip
+
+
+def _summary(args, world_map, drive: _Drive, files: dict, strip: dict | None) -> dict:
+    """The run's figures (SI units), as ``--json`` prints them."""
+    run_log, error, heading, estimate_error = drive.log, drive.error, drive.heading, drive.estimate_error
     result = {
         "map": world_map.name, "route": args.route, "odometry": args.odometry, "seed": args.seed,
         "completed": bool(run_log.completed), "distance_m": float(run_log.distance[-1]),
-        "simulated_time_s": float(run_log.time[-1]), "wall_time_s": wall,
+        "simulated_time_s": float(run_log.time[-1]), "wall_time_s": drive.wall,
         "final_position_error_m": float(error[-1]),
         "final_error_share_of_distance": float(error[-1] / run_log.distance[-1]),
         "max_position_error_m": float(error.max()),
@@ -165,7 +203,7 @@ def run(args) -> int:
         "collisions": run_log.collisions,
         "vision": not args.no_vision,
         "stations_reached": len(run_log.arrivals),
-        "table": table,
+        "table": drive.table,
         "files": files,
     }
     if strip is not None:
@@ -182,13 +220,15 @@ def run(args) -> int:
             "time_lost_s": run_log.time_lost(),
             "recoveries": int(run_log.relocalizations),
         })
-    if args.json:
-        emit_json(result)
-        return 0
+    return result
+
+
+def _print_summary(args, world_map, result: dict, drive: _Drive, strip: dict | None) -> None:
+    """The summary a person reads (degrees and centimetres only here)."""
     print(f"Drove {result['distance_m']:.1f} m of route {args.route!r} on {world_map.name!r} in "
-          f"{result['simulated_time_s']:.0f} s simulated ({wall:.1f} s wall clock), "
-          f"{result['stations_reached']} stations, {run_log.collisions} collisions.")
-    if estimate_error is not None:
+          f"{result['simulated_time_s']:.0f} s simulated ({drive.wall:.1f} s wall clock), "
+          f"{result['stations_reached']} stations, {drive.log.collisions} collisions.")
+    if drive.estimate_error is not None:
         print(f"Camera: {result['frames']} frames ({args.observations}), "
               f"{100 * result['frames_with_accepted_observation']:.0f} % with a target fused; "
               f"EKF estimate error RMSE {100 * result['estimate_rmse_m']:.1f} cm, "
@@ -196,12 +236,11 @@ def run(args) -> int:
         print(f"Localization: lost {result['lost_events']} times for {result['time_lost_s']:.1f} s in all, "
               f"recovered {result['recoveries']} times (re-localizations).")
     print(f"Dead reckoning ({args.odometry}) against truth:")
-    print(format_table(table))
-    print(f"Wrote the top-down view to {topdown}")
-    print(f"Wrote the error plot to   {plot}")
+    print(format_table(drive.table))
+    print(f"Wrote the top-down view to {result['files']['topdown']}")
+    print(f"Wrote the error plot to   {result['files']['error_plot']}")
     if strip is not None:
         found = sum(len(f["found"]) for f in strip["frames"])
         visible = sum(len(f["visible"]) for f in strip["frames"])
         print(f"Wrote {len(strip['frames'])} camera frames to {strip['path']} "
               f"(localizer found {found} targets; {visible} visible in the frames)")
-    return 0
