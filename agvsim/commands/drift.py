@@ -221,8 +221,8 @@ def _interrupted(where: dict) -> str:
             "command to write it (no seed is run again)")
 
 
-def _run(args, where: dict) -> int:
-    from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
+def _checked_map(args):
+    """The map the flags name, after every flag is checked (one line naming a bad one)."""
     from agvsim.sensors.rendered import RenderedSource
     from agvsim.world import load_map
 
@@ -240,6 +240,13 @@ def _run(args, where: dict) -> int:
     if not args.no_vision and args.observations == "rendered" and not RenderedSource.available():
         raise ValueError("the camera renderer (agvsim.sensors.render.CameraRenderer) is not available; "
                          "use --observations synthetic (synthetic frames + localizer) or geometric")
+    return world_map
+
+
+def _run(args, where: dict) -> int:
+    from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
+
+    world_map = _checked_map(args)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     workers = args.workers or (os.cpu_count() or 1)
     workers = max(1, min(workers, len(seeds)))
@@ -295,9 +302,21 @@ def _run(args, where: dict) -> int:
     if not args.no_plots:
         files = _plots(world_map, logs[median], out,
                        f"{world_map.name}: {source}, {args.odometry} odometry, seed {median} (median)")
+    result = _result(args, world_map, seeds, summary, floors, median, wall, workers, per_seed, files)
+    folder.write_json("drift.json", _json_ready(result))
+    if args.json:
+        emit_json(result)
+    else:
+        _print_result(args, summary, per_seed, floors, wall, out)
+    return 0
+
+
+def _result(args, world_map, seeds, summary, floors, median, wall, workers, per_seed, files) -> dict:
+    """What ``drift.json`` holds (SI units): the settings, the pooled summary and its floors, the
+    median seed, the machine and each seed's figures."""
     import platform
 
-    result = {
+    return {
         "map": world_map.name, "route": args.route, "distance_m": args.distance, "seeds": seeds,
         "odometry": args.odometry, "camera_rate_hz": args.camera_rate, "latency_s": args.latency,
         "vision": not args.no_vision, "observations": None if args.no_vision else args.observations,
@@ -311,26 +330,25 @@ def _run(args, where: dict) -> int:
         "per_seed": per_seed,
         "files": files,
     }
-    folder.write_json("drift.json", _json_ready(result))
-    if args.json:
-        emit_json(result)
-    else:
-        print(format_table(summary, per_seed))
-        print(f"\nposition RMSE {100 * summary['position_rmse_m']:.2f} cm, p95 {100 * summary['position_p95_m']:.2f} cm, "
-              f"max {100 * summary['position_max_m']:.2f} cm; heading RMSE "
-              f"{math.degrees(summary['heading_rmse_rad']):.3f} deg; NEES in 95 % bounds "
-              f"{100 * summary['nees_in_bounds']:.1f} % of steps; dead reckoning final error "
-              f"{summary['dead_reckoning_final_error_m']:.3f} m ({100 * summary['dead_reckoning_drift_per_m']:.2f} % "
-              f"of distance); frames with an accepted observation "
-              f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}; "
-              f"lost {summary['lost']} times for {summary['time_lost_s']:.1f} s in all, recovered "
-              f"{summary['relocalizations']} times (re-localizations); "
-              + (f"arrival error mean {100 * summary['arrival_error_mean_m']:.1f} cm"
-                 if math.isfinite(summary["arrival_error_mean_m"]) else "no station reached"))
-        if not args.no_vision:
-            print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))
-        print(f"wall time {wall:.1f} s; files in {out}")
-    return 0
+
+
+def _print_result(args, summary: dict, per_seed: list, floors: dict, wall: float, out) -> None:
+    """The table and summary a person reads (centimetres and degrees only here)."""
+    print(format_table(summary, per_seed))
+    print(f"\nposition RMSE {100 * summary['position_rmse_m']:.2f} cm, p95 {100 * summary['position_p95_m']:.2f} cm, "
+          f"max {100 * summary['position_max_m']:.2f} cm; heading RMSE "
+          f"{math.degrees(summary['heading_rmse_rad']):.3f} deg; NEES in 95 % bounds "
+          f"{100 * summary['nees_in_bounds']:.1f} % of steps; dead reckoning final error "
+          f"{summary['dead_reckoning_final_error_m']:.3f} m ({100 * summary['dead_reckoning_drift_per_m']:.2f} % "
+          f"of distance); frames with an accepted observation "
+          f"{100 * summary['frames_with_accepted_observation']:.1f} %; rejections {summary['rejections']}; "
+          f"lost {summary['lost']} times for {summary['time_lost_s']:.1f} s in all, recovered "
+          f"{summary['relocalizations']} times (re-localizations); "
+          + (f"arrival error mean {100 * summary['arrival_error_mean_m']:.1f} cm"
+             if math.isfinite(summary["arrival_error_mean_m"]) else "no station reached"))
+    if not args.no_vision:
+        print("floors: " + ", ".join(f"{k} {'met' if v['met'] else 'NOT met'}" for k, v in floors.items()))
+    print(f"wall time {wall:.1f} s; files in {out}")
 
 
 def _cpu_name() -> str:
