@@ -1,37 +1,44 @@
-# `make demo` and `make test` do all set-up on a fresh machine.
+# `make demo` and `make test` do all set-up on a fresh machine. Each phase prints one line:
+# what it did and how long it took.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed
+# the project and what it imports (the demo's needs); the test extras and the cluster extras
+# (Ray, RLlib, torch) are installed by `make test` only
+BASE   := $(VENV)/.installed
+TESTS  := $(VENV)/.installed-test
+# run a phase: $(call phase,what it does,command)
+phase = @start=$$(date +%s); $(2) || exit $$?; echo "make: $(1) ($$(( $$(date +%s) - start )) s)"
 
 .PHONY: demo test install warmup bench clean clean-kernels
 
 $(BIN)/python:
-	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(call phase,created $(VENV),$(PYTHON) -m venv $(VENV) && $(BIN)/python -m pip install --quiet --upgrade pip)
 
-# torch pinned first: 2.13.0 is the CPU build on disk, so the rllib extra's `torch>=2.1` is met (else pip fetches a multi-GB CUDA build)
-$(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install --quiet torch==2.13.0
-	$(BIN)/python -m pip install --quiet -e '.[test,ray,rllib]'
-	touch $(STAMP)
+$(BASE): $(BIN)/python pyproject.toml
+	$(call phase,installed the project into $(VENV),$(BIN)/python -m pip install --quiet -e . && touch $(BASE))
+
+# torch pinned first: 2.13.0 is the CPU build on disk, so the rllib extra's `torch>=2.1` is met
+# (else pip fetches a multi-GB CUDA build)
+$(TESTS): $(BASE)
+	$(call phase,installed the test extras (pytest; Ray + RLlib + torch for the cluster tests),$(BIN)/python -m pip install --quiet torch==2.13.0 && $(BIN)/python -m pip install --quiet -e '.[test,ray,rllib]' && touch $(TESTS))
 
 # numba compiles the kernels for this machine on their first call: done here, once, on every
-# core (seconds when they are already cached; after an edit it compiles what changed)
-warmup: $(STAMP)
-	$(BIN)/agvsim warmup
+# core (a second when they are already cached; after an edit it compiles what changed)
+warmup: $(BASE)
+	$(call phase,compiled the kernels (agvsim warmup),$(BIN)/agvsim warmup)
 
 install: warmup
 
 demo: warmup
-	$(BIN)/agvsim demo --out out/demo
+	$(call phase,ran the demo (out/demo),$(BIN)/agvsim demo --out out/demo)
 
 # -n auto: one pytest worker per core (pytest-xdist); each worker loads the compiled kernels
 # once (tests/conftest.py): `warmup` compiled them before, once for all workers.
-test: warmup
-	$(BIN)/python -m pytest -q -p no:cacheprovider -n auto
+test: $(TESTS) warmup
+	$(call phase,ran the test suite,$(BIN)/python -m pytest -q -p no:cacheprovider -n auto)
 
-bench: $(STAMP)
+bench: $(BASE)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	$(BIN)/agvsim bench sim
 	$(BIN)/agvsim bench localizer
@@ -40,6 +47,6 @@ clean:
 	rm -rf $(VENV) out *.egg-info
 
 # numba's cache is keyed on each kernel's own file: after editing a helper that other files'
-# kernels inline or call, drop the compiled kernels (ARCHITECTURE.md, "Stale kernels")
+# kernels call, drop the compiled kernels (ARCHITECTURE.md, "Stale kernels")
 clean-kernels:
 	find agvsim localizer envs -name '*.nbi' -delete -o -name '*.nbc' -delete
