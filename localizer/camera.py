@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,8 +121,14 @@ class Camera:
             raise FileNotFoundError(f"camera calibration file not found: {path}")
         try:
             fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        except cv2.error as exc:
-            raise ValueError(f"{path}: not an OpenCV FileStorage file ({exc.msg.strip()})") from None
+        except (cv2.error, SystemError) as exc:
+            # a file cut off or malformed: OpenCV's parser raises (through its Python binding, as a
+            # SystemError whose cause is the cv2.error); its message names the line
+            error = exc if isinstance(exc, cv2.error) else exc.__cause__ or exc.__context__
+            where = _parse_error(error)
+            raise ValueError(f"{path}: not a complete OpenCV FileStorage file (YAML or XML){where}; expected the "
+                             "fields camera_matrix, image_width, image_height and optionally "
+                             "distortion_coefficients") from None
         if not fs.isOpened():
             raise ValueError(f"{path}: not an OpenCV FileStorage file")
         try:
@@ -273,6 +280,16 @@ class Camera:
         out = cv2.undistortPoints(p.reshape(-1, 1, 2), self.K, np.asarray(self.dist), None, None, self.K,
                                       criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-9))
         return out.reshape(-1, 2)
+
+
+def _parse_error(error) -> str:
+    """``": <OpenCV's parse message>"`` of a ``cv2.error`` from reading a file (its line and what is
+    wrong, e.g. ``"line 7: Missing , between the elements"``), or ``""``."""
+    text = str(error) if error is not None else ""
+    match = re.search(r"\((\d+)\): ([^'\n]+)", text)
+    if match:
+        return f" at line {match.group(1)}: {match.group(2).strip()}"
+    return f": {text.strip()}" if text.strip() else ""
 
 
 def _derived(fx: float, fy: float, cx: float, cy: float, width: int, height: int, dist: tuple) -> Camera:

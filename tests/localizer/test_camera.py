@@ -89,3 +89,21 @@ def test_cameras_of_the_same_intrinsics_share_one_record():
     assert a.intrinsics_record[0].tolist() == (a.fx, a.fy, a.cx, a.cy)
     crop = a.cropped(10, 20, 110, 120)
     assert crop.intrinsics_record[0].tolist() == (a.fx, a.fy, a.cx - 10, a.cy - 20)
+
+
+@pytest.mark.parametrize("cut", [0.3, 0.6, 0.9])
+@pytest.mark.parametrize("suffix", [".yaml", ".xml"])
+def test_a_calibration_file_cut_off_is_one_clear_error(tmp_path, cut, suffix):
+    """A calibration file copied half-way (cut inside a field, the matrix's data list left open)
+    is a ValueError naming the file and what it expects, never OpenCV's SystemError."""
+    whole = tmp_path / f"whole{suffix}"
+    Camera.from_intrinsics(800.0, 805.0, 320.0, 240.0, 640, 480, (0.1, -0.05, 0.0, 0.0, 0.0)).to_opencv_yaml(whole)
+    text = whole.read_text()
+    part = tmp_path / f"part{suffix}"
+    part.write_text(text[:int(cut * len(text))])
+    try:
+        camera = Camera.from_opencv_yaml(part)
+    except ValueError as exc:
+        assert str(exc).startswith(str(part)) and "camera_matrix" in str(exc), str(exc)
+    else:  # a cut that leaves a well-formed file of other values would be read; none of these does
+        pytest.fail(f"read a file cut at {cut:.0%}: {camera}")
