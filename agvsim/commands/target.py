@@ -1,8 +1,8 @@
 """``agvsim target``: printable two-bar targets at true scale (a vector PDF).
 
-    agvsim target print --paper PAPER --out FILE.pdf [--polarity P] [--size thesis | --bar-width M]
+    agvsim target print --out FILE.pdf [--paper a4] [--polarity P] [--size thesis | --bar-width M]
                         [--ids ID ...] [--json]
-    agvsim target print --map PATH_OR_NAME --paper PAPER --out FILE.pdf [--ids ID ...] [--json]
+    agvsim target print --map PATH_OR_NAME --out FILE.pdf [--paper a4] [--ids ID ...] [--json]
 
 Each target is printed at its true size with its blank margin, crop marks outside the corners,
 its id under it and a 100 mm scale bar on every page to check the printer did not scale it. Without
@@ -27,6 +27,9 @@ from agvsim.commands._output import add_json_flag, emit_json
 from agvsim.deploy.printing import PAPERS, POLARITY_TEXT, SIZES
 from localizer.target import POLARITIES
 
+#: the paper of ``--paper``'s default
+DEFAULT_PAPER = "a4"
+
 #: The id of the one target printed when neither --ids nor --map is given.
 DEFAULT_ID = "T01"
 
@@ -46,8 +49,8 @@ def register(sub) -> None:
                     "between the bars, to be joined with the right half's strip under the left half; a3 and "
                     "tabloid print it whole. Nothing is scaled. With --map: one page per target of the map, "
                     "with its size and polarity from the map and where it hangs.")
-    p.add_argument("--paper", required=True, choices=tuple(PAPERS),
-                   help=f"paper size ({papers}); the orientation that fits most targets is chosen")
+    p.add_argument("--paper", default=None, choices=tuple(PAPERS),
+                   help=f"paper size ({papers}; default: {DEFAULT_PAPER}); the orientation that fits most targets is chosen")
     p.add_argument("--out", required=True, type=Path, metavar="FILE.pdf", help="the PDF to write")
     p.add_argument("--polarity", choices=POLARITIES, default=None,
                    help="positive: black bars on white; negative: white bars on black, the margin black too "
@@ -72,6 +75,9 @@ def run_print(args: argparse.Namespace) -> int:
     from agvsim.deploy.printing import DoesNotFit, largest_bar_width, plan_pages, write_pdf
 
     out = _check_out(args.out)
+    defaulted = args.paper is None
+    if defaulted:
+        args.paper = DEFAULT_PAPER
     targets, title = _map_targets(args) if args.map is not None else _plain_targets(args)
     try:
         pages = plan_pages(targets, args.paper, one_per_page=args.map is not None)
@@ -91,8 +97,9 @@ def run_print(args: argparse.Namespace) -> int:
         emit_json(summary)
         return 0
     orient = " and ".join(summary["orientations"])
+    default = " (the default paper; --paper letter, a3, ... for another)" if defaulted else ""
     print(f"wrote {out}: {len(targets)} target{'s' if len(targets) != 1 else ''} on {len(pages)} "
-          f"page{'s' if len(pages) != 1 else ''} of {args.paper} ({orient}); print at 100 % (actual size) and "
+          f"page{'s' if len(pages) != 1 else ''} of {args.paper}{default} ({orient}); print at 100 % (actual size) and "
           "check the 100 mm scale bar")
     if halves:
         print(f"  in two halves (larger than {args.paper} with the margin): {', '.join(halves)}; cut on the crop "

@@ -292,3 +292,14 @@ def test_bad_input_is_one_line(tmp_path, capfd, monkeypatch, argv, needles):
     for needle in needles:
         assert needle in lines[0], (needle, lines[0])
     assert not list(tmp_path.iterdir())  # nothing written, no folder made
+
+
+def test_without_paper_it_prints_on_a4_and_says_so(tmp_path, capfd):
+    out = tmp_path / "default.pdf"
+    rc, stdout, err = _run(["target", "print", "--bar-width", "0.04", "--out", str(out)], capfd)
+    assert rc == 0, err
+    page = pymupdf.open(out)[0].rect
+    assert (round(page.width / 72 * 25.4), round(page.height / 72 * 25.4)) in ((210, 297), (297, 210))
+    assert "of a4 (the default paper; --paper letter" in stdout
+    rc, stdout, err = _run(["target", "print", "--bar-width", "0.04", "--paper", "letter", "--out", str(out)], capfd)
+    assert rc == 0 and "of letter (" in stdout and "default paper" not in stdout
