@@ -90,6 +90,9 @@ def check_route(world_map, name: str, flag: str = "--route") -> str:
     routes and the nearest."""
     from localizer.numeric import check_choice
 
+    if not world_map.routes:
+        raise ValueError(f"{flag} {name}: map {world_map.name!r} has no routes; expected a map with a 'routes' "
+                         "section (maps/README.md)")
     return check_choice(f"{flag} (map {world_map.name!r})", name, world_map.routes)
 
 

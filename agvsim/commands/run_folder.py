@@ -54,12 +54,18 @@ class RunFolder:
         if record.is_file() and not restart:
             try:
                 before = json.loads(record.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                before = None
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"--out {str(self.out)!r}: its run.json cannot be read ({_reason(exc)}); expected "
+                                 "the settings of an earlier run: use --restart to replace that run, or another "
+                                 "--out") from None
+            if not isinstance(before, dict):
+                raise ValueError(f"--out {str(self.out)!r}: its run.json holds a {type(before).__name__}, expected "
+                                 "the settings of an earlier run (a JSON object): use --restart to replace that "
+                                 "run, or another --out")
             if before != self.settings:
                 differ = sorted(k for k in set(before or {}) | set(self.settings)
                                 if (before or {}).get(k) != self.settings.get(k))
-                raise ValueError(f"--out {str(self.out)!r} holds a run with other settings ({', '.join(differ) or 'unreadable run.json'}); "
+                raise ValueError(f"--out {str(self.out)!r} holds a run with other settings ({', '.join(differ)}); "
                                  "use --restart to replace it, or another --out")
         if restart:
             for old in list(self.seeds_dir.glob("seed_*")):
@@ -98,3 +104,13 @@ class RunFolder:
     def write_json(self, name: str, obj: Any) -> Path:
         """``obj`` as JSON in ``out/name``, atomically."""
         return write_json(self.out / name, obj)
+
+
+def _reason(exc: Exception) -> str:
+    """A short reason a JSON file could not be read: JSON's own message (its line and column), or
+    the OS error."""
+    if isinstance(exc, json.JSONDecodeError):
+        return f"cut off or not JSON: {exc}"
+    if isinstance(exc, UnicodeDecodeError):
+        return "not text"
+    return exc.strerror or str(exc) if isinstance(exc, OSError) else str(exc)
