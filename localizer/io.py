@@ -19,7 +19,7 @@ import numpy as np
 
 from localizer.numeric import check_number
 
-__all__ = ["FORMATS", "MAX_IMAGE_PIXELS", "image_size", "read_image_grey"]
+__all__ = ["FORMATS", "MAX_IMAGE_PIXELS", "PNG_END", "PNG_SIGNATURE", "image_size", "read_image_grey"]
 
 #: the most pixels (width x height) :func:`read_image_grey` decodes by default: 64 Mpx
 #: (8192 x 8192; 64 MB as 8-bit grey, 192 MB while OpenCV decodes a colour file). Camera
@@ -30,6 +30,11 @@ FORMATS = ("PNG", "JPEG", "BMP", "TIFF", "WebP", "PBM/PGM/PPM/PAM")
 #: bytes read for the header of the formats other than JPEG and TIFF (whose headers are
 #: found by seeking through the file)
 _HEAD = 64 * 1024
+
+
+#: the first 8 bytes of every PNG file, and its last 12: the IEND chunk (length 0, type, CRC)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
 def read_image_grey(path: str | os.PathLike, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
@@ -67,6 +72,10 @@ def read_image_grey(path: str | os.PathLike, max_pixels: int = MAX_IMAGE_PIXELS)
         data = np.fromfile(p, dtype=np.uint8)
     except OSError as exc:
         raise ValueError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    if data[:8].tobytes() == PNG_SIGNATURE and data[-12:].tobytes() != PNG_END:
+        # (a PNG cut short: refused here, before libpng writes its own complaint on stderr)
+        raise ValueError(f"{name}: cut off; a PNG file ends with its IEND chunk and this one's {data.size:,} bytes "
+                         f"do not (its header says {w} x {h} pixels)")
     img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE) if data.size else None
     if img is None:
         raise ValueError(f"{name}: not an image OpenCV can decode (its header says {w} x {h} pixels)")

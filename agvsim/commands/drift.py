@@ -251,15 +251,15 @@ def _run(args, where: dict) -> int:
     workers = args.workers or (os.cpu_count() or 1)
     workers = max(1, min(workers, len(seeds)))
     source = "none (dead reckoning)" if args.no_vision else args.observations
-    log(f"agvsim drift: map {world_map.name!r} ({len(world_map.targets)} targets), route {args.route!r}, "
-        f"{args.distance:g} m x {plural(len(seeds), 'seed')}, odometry {args.odometry!r}, camera {args.camera_rate:g} Hz "
-        f"(latency {args.latency:g} s), observations: {source}, {plural(workers, 'worker')}")
     base = {"map": args.map, "route": args.route, "distance": args.distance, "odometry": args.odometry,
             "camera_rate": args.camera_rate, "latency": args.latency, "no_vision": args.no_vision,
             "observations": args.observations, "drop_targets": args.drop_targets, "false_rate": args.false_rate,
             "camera_mount": args.camera_mount, "backend": args.backend}
     folder = RunFolder(args.out, _json_ready({**base, "camera_mount": _mount_record(args.camera_mount)}),
                        restart=args.restart)
+    log(f"agvsim drift: map {world_map.name!r} ({len(world_map.targets)} targets), route {args.route!r}, "
+        f"{args.distance:g} m x {plural(len(seeds), 'seed')}, odometry {args.odometry!r}, camera {args.camera_rate:g} Hz "
+        f"(latency {args.latency:g} s), observations: {source}, {plural(workers, 'worker')}")
     out = folder.out
     done = folder.finished(seeds)
     where.update(out=out, seeds=seeds, saved=set(done))

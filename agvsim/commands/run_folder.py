@@ -113,4 +113,6 @@ def _reason(exc: Exception) -> str:
         return f"cut off or not JSON: {exc}"
     if isinstance(exc, UnicodeDecodeError):
         return "not text"
-    return exc.strerror or str(exc) if isinstance(exc, OSError) else str(exc)
+    if isinstance(exc, OSError):
+        return exc.strerror or str(exc)
+    return str(exc)

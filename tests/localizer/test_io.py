@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.io import MAX_IMAGE_PIXELS, image_size, read_image_grey
+from localizer.io import MAX_IMAGE_PIXELS, PNG_END, image_size, read_image_grey
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -70,8 +70,12 @@ def test_bad_files(tmp_path):
         read_image_grey(junk)
     cut = tmp_path / "cut.png"
     cut.write_bytes(png_bomb(64, 64)[:40])  # header fine, data cut short
-    with pytest.raises(ValueError, match="not an image OpenCV can decode"):
+    with pytest.raises(ValueError, match="cut off; a PNG file ends with its IEND chunk"):
         read_image_grey(cut)
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(png_bomb(64, 64)[:40] + PNG_END)  # ends as a PNG does, its data broken
+    with pytest.raises(ValueError, match="not an image OpenCV can decode"):
+        read_image_grey(broken)
     empty = tmp_path / "empty.jpg"
     empty.write_bytes(b"")
     with pytest.raises(ValueError, match="cannot read the image size"):
