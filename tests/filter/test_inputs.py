@@ -1,4 +1,4 @@
-"""The filter's inputs and numbers (issue 18): every input validated at the filter's boundary
+"""The filter's inputs and numbers: every input validated at the filter's boundary
 with nothing half-applied, re-localization confirmed only from informative observations,
 the covariance bounded, refusals counted by reason."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 18, false detections: rows of equal narrow bars are not targets.
+"""False detections: rows of equal narrow bars are not targets.
 
 Every neighbouring pair of bars in such a row passes the run test as a (blurred) target,
 and two of 10,005 fuzzed frames were reported as overlapping targets sharing bars. A

@@ -8,7 +8,7 @@ from localizer.synthetic import adversarial_frames, equal_bar_frame, expose, rea
 @pytest.mark.parametrize("method", ["thesis", "exact"])
 def test_adversarial_patterns_rejected(cam16, method):
     frames = adversarial_frames(cam16, np.random.default_rng(3))
-    # issue 18's fuzzed frame (more rows of equal bars: test_equal_bar_rows.py)
+    # the fuzzed frame once reported as two targets sharing bars (more rows of equal bars: test_equal_bar_rows.py)
     frames["equal_bars"] = equal_bar_frame(cam16, 4, 5, 15, 16, 24, 172)
     assert {"chessboard", "barcode", "striped_sign", "door_frame", "noise", "black", "white"} <= set(frames)
     for name, img in frames.items():

@@ -1,4 +1,4 @@
-"""Issue 18, hostile input: an image file whose header claims a huge size is refused before
+"""Hostile input: an image file whose header claims a huge size is refused before
 decoding (``localizer.io.read_image_grey``)."""
 import struct
 import zlib

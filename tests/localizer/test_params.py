@@ -1,4 +1,4 @@
-"""Issue 18, hostile input: every detector parameter is checked, with a message naming the
+"""Hostile input: every detector parameter is checked, with a message naming the
 parameter, the value and the valid range (``localizer.params.PARAM_RANGES``)."""
 import math
 from dataclasses import fields

@@ -1,4 +1,4 @@
-"""`agvsim render` writes the frame and the truth JSON the issue specifies; `agvsim bench render --json`
+"""`agvsim render` writes the frame and the truth JSON (its documented fields); `agvsim bench render --json`
 prints one JSON object; the demo's camera strip renders, detects and tiles."""
 from __future__ import annotations
 

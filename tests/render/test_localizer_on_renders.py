@@ -1,6 +1,6 @@
 """The localizer finds every visible target in rendered frames at the thesis's 18 test points
 (Tables 5.1-5.4: 16 mm and 50 mm lenses, the thesis's distances and angles), both polarities,
-with d and alpha within the localizer issue's floors; distractors are not reported."""
+with d and alpha within the localizer's accuracy floors; distractors are not reported."""
 from __future__ import annotations
 
 import math
