@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import NamedTuple
 
 from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json, log
@@ -115,17 +116,55 @@ def _write(camera, path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import math
-    import sys
-
-    from tqdm import tqdm
-
-    from localizer.calibrate import DIST_NAMES, MIN_VIEWS, calibrate_views, find_chessboard
-    from localizer.io import read_image_grey
+    from localizer.calibrate import MIN_VIEWS, calibrate_views
 
     cols, rows = args.board
     out = _check_out(args.out)
     files = _image_list(args.images)
+    board = f"{cols}x{rows}"
+    views = _find_boards(files, cols, rows)
+    if len(views.corners) < MIN_VIEWS:
+        raise ValueError(f"a {board} chessboard was found in {len(views.corners)} of {len(files)} images; calibration "
+                         f"needs at least {MIN_VIEWS} (check --board: inner corners, 9x6 for 10 x 7 squares); "
+                         "nothing written")
+    result = calibrate_views(views.corners, views.size, cols, rows, args.square, k3=args.k3)
+    for k, i in enumerate(views.used):
+        views.rows[i]["rms_px"] = float(result.view_rms[k])
+    replaced = out.exists()
+    _write(result.camera, out)
+    _warn_if_weak(result)
+    status = 2 if views.failed else 0
+    if args.json:
+        _emit(args, out, replaced, views, result)
+        return status
+    _print_result(args, out, replaced, views, result)
+    if views.failed:
+        log(f"agvsim calibrate: {views.failed} of {len(files)} images could not be read")
+    return status
+
+
+class _Views(NamedTuple):
+    """The chessboards found in the images: per image a row (``image``, ``status``: used, no
+    board or error), the corners of the boards found (``(N, 1, 2)`` float32 px each), the rows of
+    the images used, how many images could not be read, and the image size ``(width, height)``."""
+
+    rows: list
+    corners: list
+    used: list
+    failed: int
+    size: tuple | None
+
+
+def _find_boards(files: list, cols: int, rows: int) -> _Views:
+    """The chessboard of ``cols x rows`` inner corners in each image (a progress bar over many); an
+    unreadable image is counted and reported, one of another size stops the run (nothing written)."""
+    import sys
+
+    from tqdm import tqdm
+
+    from localizer.calibrate import find_chessboard
+    from localizer.io import read_image_grey
+
     board = f"{cols}x{rows}"
     rows_out, corners, used, failed = [], [], [], 0
     size = first = None
@@ -161,17 +200,14 @@ def run(args: argparse.Namespace) -> int:
             rows_out.append({"image": name, "status": "used"})
     finally:
         bar.close()
-    if len(corners) < MIN_VIEWS:
-        raise ValueError(f"a {board} chessboard was found in {len(corners)} of {len(files)} images; calibration "
-                         f"needs at least {MIN_VIEWS} (check --board: inner corners, 9x6 for 10 x 7 squares); "
-                         "nothing written")
-    result = calibrate_views(corners, size, cols, rows, args.square, k3=args.k3)
-    for k, i in enumerate(used):
-        rows_out[i]["rms_px"] = float(result.view_rms[k])
-    replaced = out.exists()
-    _write(result.camera, out)
+    return _Views(rows_out, corners, used, failed, size)
+
+
+def _warn_if_weak(result) -> None:
+    """A line on stderr when the fit is poor or the focal length uncertain (what to do about it)."""
+    import math
+
     cam = result.camera
-    dist = dict(zip(DIST_NAMES, cam.dist or (0.0,) * len(DIST_NAMES)))
     if result.rms > RMS_WARN_PX:
         log(f"agvsim calibrate: the RMS reprojection error is {result.rms:.2f} px (a good set is well under "
             f"{RMS_WARN_PX:g} px): check --board and that the board is flat and sharp in every image")
@@ -180,27 +216,41 @@ def run(args: argparse.Namespace) -> int:
         log(f"agvsim calibrate: the focal length is uncertain to {100 * uncertain:.1f} % (one standard deviation; "
             f"the views' boards differ by at most {math.degrees(result.tilt_spread):.0f} degrees): add views "
             "tilted 20 to 45 degrees in different directions")
-    status = 2 if failed else 0
-    if args.json:
-        emit_json({"ok": not failed, "out": str(out), "replaced": replaced,
-                   "board": {"cols": cols, "rows": rows, "square_m": args.square},
-                   "views": len(corners), "rms_px": result.rms,
-                   "tilt_spread_deg": math.degrees(result.tilt_spread),
-                   "camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
-                              "height": cam.height, "dist": list(cam.dist)},
-                   "distortion": dist, "sigma": result.sigma, "images": rows_out})
-        return status
+
+
+def _distortion(cam) -> dict:
+    from localizer.calibrate import DIST_NAMES
+
+    return dict(zip(DIST_NAMES, cam.dist or (0.0,) * len(DIST_NAMES)))
+
+
+def _emit(args, out, replaced: bool, views: _Views, result) -> None:
+    """The ``--json`` object (SI units; degrees only in ``tilt_spread_deg``)."""
+    import math
+
+    cols, rows = args.board
+    cam = result.camera
+    emit_json({"ok": not views.failed, "out": str(out), "replaced": replaced,
+               "board": {"cols": cols, "rows": rows, "square_m": args.square},
+               "views": len(views.corners), "rms_px": result.rms,
+               "tilt_spread_deg": math.degrees(result.tilt_spread),
+               "camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width,
+                          "height": cam.height, "dist": list(cam.dist)},
+               "distortion": _distortion(cam), "sigma": result.sigma, "images": views.rows})
+
+
+def _print_result(args, out, replaced: bool, views: _Views, result) -> None:
+    """The table of images and the camera found, for a person."""
+    cols, rows = args.board
+    cam = result.camera
     print(f"{'image':<40} {'status':<9} {'rms (px)':>8}")
-    for r in rows_out:
+    for r in views.rows:
         rms = f"{r['rms_px']:8.3f}" if "rms_px" in r else f"{'-':>8}"
         print(f"{r['image'][-40:]:<40} {r['status']:<9} {rms}" + (f"  {r['error']}" if "error" in r else ""))
     s = result.sigma
-    print(f"\nRMS reprojection error {result.rms:.3f} px over {len(corners)} views "
-          f"({board} inner corners, {1000 * args.square:g} mm squares)")
+    print(f"\nRMS reprojection error {result.rms:.3f} px over {len(views.corners)} views "
+          f"({cols}x{rows} inner corners, {1000 * args.square:g} mm squares)")
     print(f"fx {cam.fx:.2f}  fy {cam.fy:.2f}  cx {cam.cx:.2f}  cy {cam.cy:.2f}  (px, {cam.width}x{cam.height}; "
           f"standard deviations {s['fx']:.2f} {s['fy']:.2f} {s['cx']:.2f} {s['cy']:.2f})")
-    print("distortion " + "  ".join(f"{k} {v:.5f}" for k, v in dist.items()))
+    print("distortion " + "  ".join(f"{k} {v:.5f}" for k, v in _distortion(cam).items()))
     print(f"wrote {out}" + (" (replaced the earlier file)" if replaced else ""))
-    if failed:
-        log(f"agvsim calibrate: {failed} of {len(files)} images could not be read")
-    return status
