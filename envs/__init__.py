@@ -4,9 +4,9 @@ Importing this package registers the environments under the ``agvsim``
 namespace::
 
     import gymnasium, envs
-    env = gymnasium.make("agvsim/PlantFloor-v1", localization="ekf")
+    env = gymnasium.make("agvsim/PlantFloor-v2", localization="ekf")
 
-or without the import: ``gymnasium.make("envs:agvsim/PlantFloor-v1")``.
+or without the import: ``gymnasium.make("envs:agvsim/PlantFloor-v2")``.
 Versions: ``-v2`` observes the covariance as its 6 unique entries (``covariance="flat"``,
 the flat vector Stable-Baselines3 and RLlib expect), and the status as ``-v1``; ``-v1``
 observes the localization status (``observe_status=True``) and the 3 x 3 covariance;

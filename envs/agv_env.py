@@ -96,7 +96,7 @@ class AGVEnv(gym.Env):
     max_episode_steps=N)``).
 
     ## Arguments
-    ``gymnasium.make("agvsim/PlantFloor-v1", map=..., route=..., task=...,
+    ``gymnasium.make("agvsim/PlantFloor-v2", map=..., route=..., task=...,
     odometry={odometry}, localization={localization},
     camera_rate=4.0, camera_latency=0.25, observations={observations},
     camera_mount=None | CameraMount | dict (None: the map's recommended mount),

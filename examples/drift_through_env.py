@@ -1,7 +1,7 @@
 """Drift-correction evaluation through the Gym API: EKF against dead reckoning.
 
 The pure-pursuit follower (examples/pure_pursuit_planner.py) drives each
-episode of ``agvsim/PlantFloor-v1`` twice with the same seed: once steering
+episode of ``agvsim/PlantFloor-v2`` twice with the same seed: once steering
 on the EKF estimate and once on dead reckoning. The true pose comes from
 ``info`` (evaluation may read it; the agent never does).
 
@@ -26,7 +26,7 @@ def _planner():
     return module
 
 
-def main(env_id: str = "agvsim/PlantFloor-v1", episodes: int = 2, odometry: str = "typical",
+def main(env_id: str = "agvsim/PlantFloor-v2", episodes: int = 2, odometry: str = "typical",
          observations: str = "rendered") -> dict[str, dict[str, float]]:
     """Goal reach rate and final position error (m) per localization mode."""
     planner = _planner()
@@ -46,7 +46,7 @@ def main(env_id: str = "agvsim/PlantFloor-v1", episodes: int = 2, odometry: str 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="agvsim/PlantFloor-v1")
+    parser.add_argument("--env", default="agvsim/PlantFloor-v2")
     parser.add_argument("--episodes", type=int, default=2)
     parser.add_argument("--odometry", default="typical", choices=agvsim.ODOMETRY_PRESETS)
     parser.add_argument("--observations", default="rendered", choices=agvsim.SOURCES)

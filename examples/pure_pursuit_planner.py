@@ -6,7 +6,7 @@ station, steering on the *observed* pose (what the vehicle believes, per
 vehicle misses its goal as dead reckoning drifts; with ``ekf`` the camera
 keeps it on track.
 
-    python examples/pure_pursuit_planner.py --env agvsim/PlantFloor-v1 --localization ekf
+    python examples/pure_pursuit_planner.py --env agvsim/PlantFloor-v2 --localization ekf
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def route_between(world_map, route: str, start: str, goal: str) -> RoutePath:
     return RoutePath(points, legs, loop=False)
 
 
-def main(env_id: str = "agvsim/Corridor-v1", seed: int = 0, max_steps: int = 3000,
+def main(env_id: str = "agvsim/Corridor-v2", seed: int = 0, max_steps: int = 3000,
          **env_kwargs) -> dict:
     """Drive one episode; returns whether the goal was reached and the errors."""
     env = gym.make(env_id, **env_kwargs)
@@ -61,7 +61,7 @@ def main(env_id: str = "agvsim/Corridor-v1", seed: int = 0, max_steps: int = 300
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="agvsim/Corridor-v1")
+    parser.add_argument("--env", default="agvsim/Corridor-v2")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--localization", default="ekf", choices=agvsim.LOCALIZATION_MODES)
     args = parser.parse_args()

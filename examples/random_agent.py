@@ -1,6 +1,6 @@
 """A random agent on an agvsim environment (the smallest Gymnasium loop).
 
-    python examples/random_agent.py --env agvsim/Corridor-v1 --steps 200
+    python examples/random_agent.py --env agvsim/Corridor-v2 --steps 200
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import agvsim
 import envs  # noqa: F401  (registers the agvsim/ environments)
 
 
-def main(env_id: str = "agvsim/PlantFloor-v1", steps: int = 200, seed: int = 0,
+def main(env_id: str = "agvsim/PlantFloor-v2", steps: int = 200, seed: int = 0,
          **env_kwargs) -> dict[str, float]:
     """Run ``steps`` random actions; returns the return, collisions and final error."""
     env = gym.make(env_id, **env_kwargs)
@@ -37,7 +37,7 @@ def main(env_id: str = "agvsim/PlantFloor-v1", steps: int = 200, seed: int = 0,
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--env", default="agvsim/PlantFloor-v1")
+    parser.add_argument("--env", default="agvsim/PlantFloor-v2")
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--localization", default="ekf", choices=agvsim.LOCALIZATION_MODES)

@@ -1,4 +1,4 @@
-"""PPO on ``agvsim/PlantFloor-v0`` with RLlib: env runners in their own processes, one learner.
+"""PPO on ``agvsim/PlantFloor-v2`` with RLlib: env runners in their own processes, one learner.
 
     python examples/rllib_ppo.py --iterations 10 --env-runners 1 --train-batch 4000
     python examples/rllib_ppo.py --tiny      # smoke run: one small iteration (~200 steps)
@@ -8,9 +8,10 @@ Needs the ``rllib`` extra (``pip install -e '.[ray,rllib]'``; ``make test`` inst
 RLlib does not read Gymnasium's registry: the environment is registered with RLlib under
 ``agvsim-plantfloor`` through ``ray.tune.register_env``. Its creator imports ``envs`` itself,
 since each env runner is a separate process that must register the Gymnasium ids before
-``gymnasium.make``. The env's observation is a ``Dict`` of Boxes (pose, 3 x 3 covariance, goal,
-wheel speeds), which RLlib's default model catalog does not encode: the creator flattens it
-with Gymnasium's ``FlattenObservation`` into one ``Box((17,), float32)``. The action is the
+``gymnasium.make``. The env's observation is a ``Dict`` (pose, the covariance's 6 entries, goal,
+wheel speeds: Boxes; the filter's status: Discrete), which RLlib's default model catalog does
+not encode: the creator flattens it with Gymnasium's ``FlattenObservation`` into one
+``Box((17,), float32)`` (the status one-hot). The action is the
 env's own ``Box(-1, 1, (2,))`` (forward speed, yaw rate).
 
 Ray runs on this machine only (``num_cpus`` = its cores, no GPU, no dashboard); the env
@@ -32,7 +33,7 @@ import time
 #: RLlib's name for the environment (``ray.tune.register_env``)
 ENV_NAME = "agvsim-plantfloor"
 #: the Gymnasium id it makes
-GYM_ID = "agvsim/PlantFloor-v0"
+GYM_ID = "agvsim/PlantFloor-v2"
 #: environment variables of every Ray worker (env runners): headless EGL for a pyrender
 #: backend, one numba and one BLAS thread per process (the processes share the cores)
 WORKER_ENV = {"PYOPENGL_PLATFORM": "egl", "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",

@@ -47,7 +47,7 @@ _LOOP_KEYS = {"physics": "sim", "render": "render", "localize": "localize", "fil
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--env-id", default="agvsim/PlantFloor-v1")
+    parser.add_argument("--env-id", default="agvsim/PlantFloor-v2")
     parser.add_argument("--steps", type=number(1, integer=True), default=600, help="timed policy steps (default: %(default)s)")
     parser.add_argument("--localization", default="ekf", choices=LOCALIZATION_MODES)
     parser.add_argument("--observations", default=None, choices=SOURCES,
@@ -145,7 +145,9 @@ def kernels_compiled() -> int:
         return 0
     from numba.core.dispatcher import Dispatcher
 
-    return sum(sum(d.stats.cache_misses.values()) for d in gc.get_objects() if isinstance(d, Dispatcher))
+    # (the class's MRO, not isinstance: Dispatcher is an ABC, whose isinstance test on every live
+    # object of the process touches other libraries' deprecated attributes, torch's among them)
+    return sum(sum(d.stats.cache_misses.values()) for d in gc.get_objects() if Dispatcher in type(d).__mro__)
 
 
 def _worker(env_id: str, kwargs: dict, steps: int, queue) -> None:

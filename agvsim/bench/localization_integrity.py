@@ -4,7 +4,7 @@ Four experiments, each trial in a worker process (a local pool, ``--workers``), 
 frames (the raycast backend, the envs' default camera):
 
 ``random``
-    ``agvsim/PlantFloor-v1`` (v0 with the status observed) with its defaults, ``reset(seed=s)``, then ``--steps`` steps of
+    ``agvsim/PlantFloor-v2`` (the status observed, the covariance flat) with its defaults, ``reset(seed=s)``, then ``--steps`` steps of
     the smoothed random policy ``a <- 0.9 a + 0.1 (U(0.2, 1), U(-1, 1))`` drawn from
     ``numpy.random.default_rng(s)`` (the agent drives into things). Per step: *honest* when
     the filter reports itself lost (``lost`` or ``relocalizing``) or the true position error
@@ -170,7 +170,7 @@ def _random_trial(seed: int, steps: int) -> dict:
 
     import envs  # noqa: F401  (registers the envs)
 
-    env = gym.make("agvsim/PlantFloor-v1")
+    env = gym.make("agvsim/PlantFloor-v2")
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     a = np.zeros(2)

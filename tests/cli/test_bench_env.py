@@ -19,7 +19,7 @@ from agvsim.bench.env import (
 @pytest.fixture(scope="module")
 def result():
     # max_episode_steps 40: the run crosses episode ends, whose loops' timings must be kept
-    return measure("agvsim/PlantFloor-v1", {"observations": "geometric", "max_episode_steps": 40}, steps=120,
+    return measure("agvsim/PlantFloor-v2", {"observations": "geometric", "max_episode_steps": 40}, steps=120,
                    warmup=5)
 
 
@@ -41,7 +41,7 @@ def test_the_breakdown_parts_are_non_negative_and_sum_to_the_total(result):
 
 
 def test_the_table_shows_the_breakdown(result):
-    table = format_table({"env_id": "agvsim/PlantFloor-v1", "machine": {"cpu_model": "test"}, "skipped": ["image"],
+    table = format_table({"env_id": "agvsim/PlantFloor-v2", "machine": {"cpu_model": "test"}, "skipped": ["image"],
                           "configs": {"state": {**result, "localization": "ekf", "peak_rss_mb": 100.0,
                                                 "rss_end_mb": {"anon": 60.0, "file": 40.0}}},
                           "floor_peak_rss_mb": FLOOR_PEAK_RSS_MB})

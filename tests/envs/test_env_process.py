@@ -17,7 +17,7 @@ NOT_IMPORTED = ("pyrender", "OpenGL", "trimesh", "cv2", "matplotlib", "pandas", 
 SCRIPT = f"""
 import sys
 import numpy as np, gymnasium as gym, envs
-env = gym.make("agvsim/PlantFloor-v0", observe_image=True)
+env = gym.make("agvsim/PlantFloor-v2", observe_image=True)
 obs, _ = env.reset(seed=0)
 for _ in range(12):
     obs, *_ = env.step(np.array([0.6, 0.2], np.float32))

@@ -8,6 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import envs
+from envs.agv_env import COVARIANCE_FLAT_INDEX
 
 FAST = {"localization": "odometry"}
 
@@ -15,7 +16,11 @@ FAST = {"localization": "odometry"}
 @pytest.mark.parametrize("env_id", sorted(envs.ENV_SPECS))
 def test_check_env_passes_without_warnings(env_id):
     """With the defaults: EKF localization on rendered camera frames."""
-    env = gym.make(env_id, render_mode="rgb_array")
+    if env_id.endswith("-v2"):
+        env = gym.make(env_id, render_mode="rgb_array")
+    else:  # (kept for old code: gymnasium says the version is out of date)
+        with pytest.warns(DeprecationWarning, match="out of date"):
+            env = gym.make(env_id, render_mode="rgb_array")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
@@ -28,7 +33,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
     while dead reckoning drifts by decimetres."""
     from agvsim.loop.pure_pursuit import FollowerParams, PurePursuit, RoutePath
 
-    env = gym.make("agvsim/PlantFloor-v0", localization="truth", odometry="worn", task="localize")
+    env = gym.make("agvsim/PlantFloor-v2", localization="truth", odometry="worn", task="localize")
     obs, _ = env.reset(seed=4)
     base = env.unwrapped
     start = base.loop.true_pose
@@ -43,7 +48,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
         obs, *_ = env.step(a)
     errors = {}
     for mode in ("ekf", "odometry"):
-        env = gym.make("agvsim/PlantFloor-v0", localization=mode, odometry="worn",
+        env = gym.make("agvsim/PlantFloor-v2", localization=mode, odometry="worn",
                        observations="geometric", task="localize")
         env.reset(seed=4)
         accepted = 0
@@ -59,7 +64,7 @@ def test_ekf_keeps_the_estimate_where_odometry_drifts():
 
 @pytest.mark.render
 def test_observe_image_returns_the_rendered_frame():
-    env = gym.make("agvsim/Corridor-v0", observe_image=True, render_mode="rgb_array")
+    env = gym.make("agvsim/Corridor-v2", observe_image=True, render_mode="rgb_array")
     obs, _ = env.reset(seed=1)
     assert obs["image"].shape == (480, 512, 1) and obs["image"].dtype == np.uint8
     for _ in range(5):  # the first frame is captured after 1 / camera_rate = 0.25 s
@@ -74,11 +79,11 @@ def test_observe_image_returns_the_rendered_frame():
 
 def test_observe_image_needs_rendered_frames():
     with pytest.raises(ValueError, match="observe_image"):
-        gym.make("agvsim/PlantFloor-v0", observe_image=True, observations="geometric")
+        gym.make("agvsim/PlantFloor-v2", observe_image=True, observations="geometric")
 
 
 def test_string_entry_point_without_prior_import():
-    env = gym.make("envs:agvsim/Corridor-v0", **FAST)
+    env = gym.make("envs:agvsim/Corridor-v2", **FAST)
     obs, info = env.reset(seed=0)
     assert env.observation_space.contains(obs)
     assert set(info) >= {"true_pose", "estimated_pose", "odometry_pose", "position_error",
@@ -87,14 +92,14 @@ def test_string_entry_point_without_prior_import():
 
 def test_unknown_option_is_an_error_with_a_suggestion():
     with pytest.raises(ValueError, match="localisation.*did you mean 'localization'"):
-        gym.make("agvsim/PlantFloor-v0", localisation="ekf")
+        gym.make("agvsim/PlantFloor-v2", localisation="ekf")
 
 
 @pytest.mark.parametrize("bad", [{"localization": "gps"}, {"camera_rate": 0.0}, {"lens": 35},
                                  {"odometry": "new"}])
 def test_bad_option_values_are_errors(bad):
     with pytest.raises(ValueError):
-        gym.make("agvsim/PlantFloor-v0", **bad)
+        gym.make("agvsim/PlantFloor-v2", **bad)
 
 
 def rollout(env, seed, n=60):
@@ -110,8 +115,8 @@ def rollout(env, seed, n=60):
 
 
 def test_same_seed_steps_identically():
-    a = gym.make("agvsim/PlantFloor-v0", **FAST)
-    b = gym.make("agvsim/PlantFloor-v0", **FAST)
+    a = gym.make("agvsim/PlantFloor-v2", **FAST)
+    b = gym.make("agvsim/PlantFloor-v2", **FAST)
     ta, tb = rollout(a, 5), rollout(b, 5)
     assert len(ta) == len(tb)
     assert all(np.array_equal(x, y) for x, y in zip(ta, tb))
@@ -120,14 +125,14 @@ def test_same_seed_steps_identically():
 
 
 def test_pickle_round_trip_reproduces_reset_and_step():
-    env = gym.make("agvsim/Corridor-v0", **FAST).unwrapped
+    env = gym.make("agvsim/Corridor-v2", **FAST).unwrapped
     clone = pickle.loads(pickle.dumps(env))
     ta, tb = rollout(env, 11), rollout(clone, 11)
     assert all(np.array_equal(x, y) for x, y in zip(ta, tb))
 
 
 def test_actions_are_clipped_and_nan_is_an_error():
-    env = gym.make("agvsim/PlantFloor-v0", **FAST).unwrapped
+    env = gym.make("agvsim/PlantFloor-v2", **FAST).unwrapped
     env.reset(seed=0)
     for _ in range(40):
         _, _, _, _, info = env.step(np.array([5.0, 0.0]))
@@ -139,7 +144,7 @@ def test_actions_are_clipped_and_nan_is_an_error():
 
 
 def test_goal_reward_is_progress_on_the_true_pose():
-    env = gym.make("agvsim/Corridor-v0", **FAST, time_cost=0.0).unwrapped
+    env = gym.make("agvsim/Corridor-v2", **FAST, time_cost=0.0).unwrapped
     env.reset(seed=3)
     before = env.task.goal_distance(env.loop)
     _, reward, _, _, _ = env.step(np.array([0.5, 0.0]))
@@ -147,8 +152,8 @@ def test_goal_reward_is_progress_on_the_true_pose():
 
 
 def test_truth_mode_observes_the_true_pose_and_odometry_does_not():
-    truth = gym.make("agvsim/PlantFloor-v0", localization="truth", odometry="worn").unwrapped
-    odo = gym.make("agvsim/PlantFloor-v0", localization="odometry", odometry="worn").unwrapped
+    truth = gym.make("agvsim/PlantFloor-v2", localization="truth", odometry="worn").unwrapped
+    odo = gym.make("agvsim/PlantFloor-v2", localization="odometry", odometry="worn").unwrapped
     for env in (truth, odo):
         env.reset(seed=2)
         for _ in range(150):
@@ -160,19 +165,22 @@ def test_truth_mode_observes_the_true_pose_and_odometry_does_not():
     obs, info = odo._last
     assert info["position_error"] > 0.01
     assert np.allclose(obs["pose"], info["odometry_pose"], atol=1e-4)
-    assert np.all(np.linalg.eigvalsh(obs["covariance"].astype(float)) >= -1e-9)
-    assert obs["covariance"][0, 0] > 0
+    cov = np.zeros((3, 3))
+    for value, (i, k) in zip(obs["covariance"].astype(float), COVARIANCE_FLAT_INDEX):  # (-v2's flat layout)
+        cov[i, k] = cov[k, i] = value
+    assert np.all(np.linalg.eigvalsh(cov) >= -1e-9)
+    assert cov[0, 0] > 0
 
 
 def test_truncated_at_the_step_limit():
-    env = gym.make("agvsim/PlantFloor-v0", **FAST, max_episode_steps=5)
+    env = gym.make("agvsim/PlantFloor-v2", **FAST, max_episode_steps=5)
     env.reset(seed=0)
     flags = [env.step(np.zeros(2))[3] for _ in range(5)]
     assert flags == [False] * 4 + [True]
 
 
 def test_rgb_array_render_shows_the_floor():
-    env = gym.make("agvsim/PlantFloor-v0", **FAST, render_mode="rgb_array")
+    env = gym.make("agvsim/PlantFloor-v2", **FAST, render_mode="rgb_array")
     env.reset(seed=0)
     env.step(np.array([0.5, 0.0]))
     img = env.render()
@@ -182,7 +190,7 @@ def test_rgb_array_render_shows_the_floor():
 
 ASYNC_SCRIPT = """
 import gymnasium as gym, numpy as np, envs
-vec = gym.make_vec("agvsim/Corridor-v0", num_envs=2, vectorization_mode="async")
+vec = gym.make_vec("agvsim/Corridor-v2", num_envs=2, vectorization_mode="async")
 try:
     obs, _ = vec.reset(seed=[1, 2])
     assert obs["pose"].shape == (2, 3)
@@ -212,7 +220,7 @@ def test_async_vector_env_steps():
 
 
 def test_rgb_array_keeps_the_camera_frame_and_key_off_the_map():
-    env = gym.make("agvsim/PlantFloor-v0", **FAST, render_mode="rgb_array")
+    env = gym.make("agvsim/PlantFloor-v2", **FAST, render_mode="rgb_array")
     env.reset(seed=0)
     env.step(np.array([0.5, 0.0]))
     img = env.render()

@@ -17,10 +17,10 @@ FAST = {"observations": "geometric"}
 
 
 def test_corridor_env_uses_the_corridors_mount_and_takes_another():
-    env = gym.make("agvsim/Corridor-v0", **FAST).unwrapped
+    env = gym.make("agvsim/Corridor-v2", **FAST).unwrapped
     assert env.vision.mount == load_map("corridor").camera_mount
     assert env.vision.mount != load_map("plant_floor").camera_mount
-    env = gym.make("agvsim/Corridor-v0", **FAST, camera_mount={"forward": 0.2, "lateral": 0.0, "height": 1.0,
+    env = gym.make("agvsim/Corridor-v2", **FAST, camera_mount={"forward": 0.2, "lateral": 0.0, "height": 1.0,
                                                                "yaw": -math.pi / 2}).unwrapped
     assert env.vision.mount == CameraMount(forward=0.2, lateral=0.0, height=1.0, yaw=-math.pi / 2)
     env.reset(seed=0)
@@ -52,7 +52,7 @@ def test_tasks_registry_and_docstring_read_one_list():
 
 
 def test_localize_task_rewards_a_small_error_and_goto_progress():
-    env = gym.make("agvsim/ActiveLocalization-v0", **FAST, time_cost=0.0, collision_penalty=0.0).unwrapped
+    env = gym.make("agvsim/ActiveLocalization-v2", **FAST, time_cost=0.0, collision_penalty=0.0).unwrapped
     env.reset(seed=0)
     _, reward, terminated, _, info = env.step(np.array([0.5, 0.0], np.float32))
     assert reward == pytest.approx(1.0 / (1.0 + (info["position_error"] / env.config.error_scale) ** 2))
@@ -62,7 +62,7 @@ def test_localize_task_rewards_a_small_error_and_goto_progress():
 
 
 def test_goto_terminates_at_the_goal():
-    env = gym.make("agvsim/Corridor-v0", **FAST, goal_radius=100.0).unwrapped
+    env = gym.make("agvsim/Corridor-v2", **FAST, goal_radius=100.0).unwrapped
     env.reset(seed=2)
     _, _, terminated, _, _ = env.step(np.zeros(2, np.float32))
     assert terminated  # every station is within 100 m

@@ -20,14 +20,14 @@ def test_odometry_drift_orders_the_presets(capsys):
 
 
 def test_random_agent_runs_and_reports(capsys):
-    result = load("random_agent").main("agvsim/Corridor-v1", steps=40, localization="odometry")
+    result = load("random_agent").main("agvsim/Corridor-v2", steps=40, localization="odometry")
     assert result["episodes"] >= 1
     assert result["final_position_error_m"] >= 0.0
     assert "random steps" in capsys.readouterr().out
 
 
 def test_pure_pursuit_planner_reaches_the_goal_on_the_ekf_estimate():
-    result = load("pure_pursuit_planner").main("agvsim/Corridor-v1", seed=0, localization="ekf",
+    result = load("pure_pursuit_planner").main("agvsim/Corridor-v2", seed=0, localization="ekf",
                                                observations="geometric")
     assert result["path_length_m"] > 30
     assert result["reached"] and result["collisions"] == 0
@@ -35,7 +35,7 @@ def test_pure_pursuit_planner_reaches_the_goal_on_the_ekf_estimate():
 
 
 def test_drift_through_env_ekf_beats_dead_reckoning(capsys):
-    table = load("drift_through_env").main("agvsim/PlantFloor-v1", episodes=1, odometry="worn",
+    table = load("drift_through_env").main("agvsim/PlantFloor-v2", episodes=1, odometry="worn",
                                            observations="geometric")
     assert table["ekf"]["reached"] == 1.0
     assert table["ekf"]["final_position_error_m"] < table["odometry"]["final_position_error_m"]
