@@ -86,7 +86,7 @@ class RunFolder:
                 continue
             try:
                 metrics = json.loads(meta.read_text(encoding="utf-8"))
-                with np.load(arrays) as data:
+                with open(arrays, "rb") as f, np.load(f) as data:  # (closed also when not a zip)
                     log = SimpleNamespace(**{k: data[k] for k in data.files})
             except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
                 continue

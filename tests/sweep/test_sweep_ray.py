@@ -89,4 +89,5 @@ def test_local_pool_local_ray_and_a_ray_cluster_give_the_same_rows(tmp_path):
         except ProcessLookupError:
             pass
         head.wait()
+        head.stdout.close()
         shutil.rmtree(temp, ignore_errors=True)
