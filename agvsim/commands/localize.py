@@ -33,7 +33,8 @@ def register(sub) -> None:
                           "another size is localized with the thesis sensor scaled to it, a frame of a folder or "
                           "video fails")
     cam.add_argument("--camera", metavar="CALIB.yaml", help="OpenCV calibration file (camera_matrix, "
-                     "distortion_coefficients, image_width, image_height); every frame must have its size")
+                     "distortion_coefficients, image_width, image_height); every frame must have its size (default: none, "
+                          "the thesis camera of --lens)")
     p.add_argument("--method", choices=METHODS, default="exact",
                    help="thesis: the thesis's pipeline; exact: subpixel edges + exact pose (default)")
     p.add_argument("--bar-width", type=number(0.0, low_open=True, unit="m"), default=0.075, metavar="M",
@@ -43,7 +44,7 @@ def register(sub) -> None:
                       help="write one row per frame and target (source, frame, time_s, d_m, beta_rad, alpha_rad, "
                            "their sigmas, polarity; a failed frame: its error) as CSV or JSON lines, by the "
                            "extension; written and flushed frame by frame")
-    rows.add_argument("--format", choices=("csv", "jsonl"), help="print the rows of --out on stdout in this format")
+    rows.add_argument("--format", choices=("csv", "jsonl"), help="print the rows of --out on stdout in this format (default: none, the table for a person)")
     p.add_argument("--fps", type=number(0.0, low_open=True, unit="Hz"), metavar="HZ",
                    help="frame rate of image files and folders: a frame's time is index / HZ (default: no time); "
                         "a video's times are its own")

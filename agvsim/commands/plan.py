@@ -34,7 +34,7 @@ def register(sub) -> None:
                    help="budget on the predicted position error bound 3σ along the route, m (default: %(default)s)")
     p.add_argument("--keep-targets", action="store_true", help="keep the map's targets and add to them")
     p.add_argument("--forbid", nargs="+", default=(), metavar="WALL[:SIDE]",
-                   help="wall faces where no target may hang: a wall id, or WALL:left / WALL:right")
+                   help="wall faces where no target may hang: a wall id, or WALL:left / WALL:right (default: none)")
     p.add_argument("--min-spacing", type=number(0.0, unit="m"), default=2.0,
                    help="least distance between two targets, m (default: %(default)s)")
     p.add_argument("--step", type=number(0.05, 10.0, unit="m"), default=0.5,

@@ -46,7 +46,8 @@ def register(sub) -> None:
     p.add_argument("--focus", type=number(0.0, low_open=True, unit="m"), default=None, metavar="M",
                    help="focus distance (m): thin-lens defocus grows away from it (default: all in focus)")
     p.add_argument("--velocity", type=number(), nargs=2, default=(0.0, 0.0), metavar=("V", "OMEGA"),
-                   help="vehicle speed (m/s) and yaw rate (rad/s) during the exposure, for motion blur")
+                   help="vehicle speed (m/s) and yaw rate (rad/s) during the exposure, for motion blur (default: 0 0, "
+                        "standing still)")
     p.add_argument("--no-noise", action="store_true", help="no sensor noise")
     p.add_argument("--rgb", action="store_true", help="write a 3-channel image instead of grey")
     add_backend_flag(p)

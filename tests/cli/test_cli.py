@@ -102,3 +102,26 @@ def test_importing_the_env_and_filter_stack_imports_no_gl_or_opencv():
             "'matplotlib', 'pandas', 'ray')}); "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_every_option_with_a_default_says_it_in_its_help():
+    """``--help`` shows every option's default: an option that has one (not None, not off) names
+    it in its help text, and an optional value without one says what happens without it."""
+    import argparse
+
+    from agvsim.cli import build_parser
+
+    silent = []
+
+    def walk(parser, name):
+        for a in parser._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for sub, p in a.choices.items():
+                    walk(p, f"{name} {sub}")
+            elif (a.option_strings and a.help not in (None, argparse.SUPPRESS) and not a.required
+                  and a.nargs != 0 and a.default is not False and "default" not in a.help):
+                silent.append(f"{name} {'/'.join(a.option_strings)}")
+
+    walk(build_parser(), "agvsim")
+    outputs = {"--out", "--annotate", "--truth", "--save-frames", "--bar-width", "--map", "--address"}
+    assert [s for s in silent if s.split()[-1] not in outputs] == []
