@@ -4,7 +4,8 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 # the project and what it imports (the demo's needs); the test extras and the cluster extras
-# (Ray, RLlib, torch) are installed by `make test` only
+# (Ray, RLlib, torch) are installed by `make test` only. --no-compile: Python writes a module's
+# bytecode when it first imports it, not pip for every module of every package (half the install)
 BASE   := $(VENV)/.installed
 TESTS  := $(VENV)/.installed-test
 # run a phase: $(call phase,what it does,command)
@@ -13,15 +14,15 @@ phase = @start=$$(date +%s); $(2) || exit $$?; echo "make: $(1) ($$(( $$(date +%
 .PHONY: demo test install warmup bench clean clean-kernels
 
 $(BIN)/python:
-	$(call phase,created $(VENV),$(PYTHON) -m venv $(VENV) && $(BIN)/python -m pip install --quiet --upgrade pip)
+	$(call phase,created $(VENV),$(PYTHON) -m venv $(VENV) && $(BIN)/python -m pip install --quiet 'pip>=21.3')
 
 $(BASE): $(BIN)/python pyproject.toml
-	$(call phase,installed the project into $(VENV),$(BIN)/python -m pip install --quiet -e . && touch $(BASE))
+	$(call phase,installed the project into $(VENV),$(BIN)/python -m pip install --quiet --no-compile -e . && touch $(BASE))
 
 # torch pinned first: 2.13.0 is the CPU build on disk, so the rllib extra's `torch>=2.1` is met
 # (else pip fetches a multi-GB CUDA build)
 $(TESTS): $(BASE)
-	$(call phase,installed the test extras (pytest; Ray + RLlib + torch for the cluster tests),$(BIN)/python -m pip install --quiet torch==2.13.0 && $(BIN)/python -m pip install --quiet -e '.[test,ray,rllib]' && touch $(TESTS))
+	$(call phase,installed the test extras (pytest; Ray + RLlib + torch for the cluster tests),$(BIN)/python -m pip install --quiet --no-compile torch==2.13.0 && $(BIN)/python -m pip install --quiet --no-compile -e '.[test,ray,rllib]' && touch $(TESTS))
 
 # numba compiles the kernels for this machine on their first call: done here, once, on every
 # core (a second when they are already cached; after an edit it compiles what changed)
