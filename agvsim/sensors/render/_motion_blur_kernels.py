@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba.cpython.unsafe.numbers import trailing_zeros
 
-from agvsim.sensors.render.kernel_jit import helper, kernel
+from agvsim.sensors.render.kernel_jit import frame_kernel, helper
 
 __all__ = ["motion_blur", "transpose_into"]
 
@@ -176,7 +176,7 @@ def _row_paths(radiance, depth, params, i, scratch):
     return rmin, rmax
 
 
-@kernel
+@frame_kernel
 def motion_blur(radiance, depth, params, out, scratch):
     """Average each pixel along its scene point's image path between the exposure's ends.
 
@@ -205,7 +205,7 @@ def motion_blur(radiance, depth, params, out, scratch):
         _row_runs(radiance, scratch, out[i], not fits)
 
 
-@kernel
+@frame_kernel
 def transpose_into(src, dst):
     """``dst[...] = src.T``: a column-major frame (``src``, ``(W, H)`` float32, C-contiguous: the
     raycaster's) to the row-major one motion blur reads (``dst``, ``(H, W)`` float32,

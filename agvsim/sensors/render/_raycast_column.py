@@ -16,21 +16,21 @@ import numpy as np
 from agvsim.sensors.render._raycast_face import shade_face
 from agvsim.sensors.render._raycast_floor import floor_level
 from agvsim.sensors.render._raycast_kernels import FAR, lamp_irradiance, raster_lookup
-from agvsim.sensors.render.kernel_jit import helper
+from agvsim.sensors.render.kernel_jit import span_helper
 
 __all__ = ["shade_column", "shade_flat"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2  # agvsim.sensors.render.ray_records.SpanKind
 
 
-@helper
+@span_helper
 def _wrap(x, n, inv_n):
     """``x`` (float texel coordinate) folded into ``0 <= x < n``."""
     x = x - n * math.floor(x * inv_n)
     return x if x < n else 0.0
 
 
-@helper
+@span_helper
 def shade_flat(view, scene, sub, sid, hh, y0, y1, acc):
     """Add the radiance of a flat span (the floor, ``sid < 0``, or the top of solid ``sid`` at
     height ``hh`` m) over rows ``y0 .. y1`` of the sub-column ``sub``
@@ -102,7 +102,7 @@ def shade_flat(view, scene, sub, sid, hh, y0, y1, acc):
         acc[i] += gain * cov * alb * irr
 
 
-@helper
+@span_helper
 def _flat_depth(view, sub, kind, sid, hh, y0, y1, depth, floor_depth):
     """The depth at the pixel centres ``y0 <= i < y1`` of a span that is not a face: the floor's
     row depth (``floor_depth``), a solid's top at height ``hh`` m (``fy (cam_z - hh) / (i - cy)``),
@@ -127,7 +127,7 @@ def _flat_depth(view, sub, kind, sid, hh, y0, y1, depth, floor_depth):
             depth[i] = 0.0
 
 
-@helper
+@span_helper
 def _floor_span(view, scene, sub, y0, y1, work):
     """A span of the floor in the sub-column ``sub`` of column ``sub.j``, into ``work.acc``: the
     pixels it covers whole and the floor pass drew (``work.drawn[j]``, the pass's
@@ -154,7 +154,7 @@ def _floor_span(view, scene, sub, y0, y1, work):
                 shade_flat(view, scene, sub, floor_id, 0.0, ya, yb, acc)
 
 
-@helper
+@span_helper
 def _background(view, scene, sub, y0, y1, acc):
     """Add the background's radiance over rows ``y0 .. y1`` of the sub-column ``sub`` to ``acc``."""
     h_img = view.height
@@ -176,7 +176,7 @@ def _background(view, scene, sub, y0, y1, acc):
         acc[i] += bg
 
 
-@helper
+@span_helper
 def shade_column(view, scene, sub, ns, work, depth):
     """Add the radiance of the ``ns`` spans in ``work.spans`` (rows ``y0 .. y1``, kind, id, value of
     span ``k`` at ``k``: :func:`~agvsim.sensors.render._raycast_kernels.cast_ray`) over the

@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 
 from agvsim.sensors.render._raycast_rows import irr_at, own_reflectance
-from agvsim.sensors.render.kernel_jit import helper, kernel
+from agvsim.sensors.render.kernel_jit import frame_kernel, span_helper
 
 __all__ = ["box_average", "box_edges", "decal_band", "decal_cover", "sat_cell"]
 
 
-@helper
+@span_helper
 def box_edges(lo, hi, n):
     """A box's edges ``lo <= hi`` (texels) on a table of ``n`` texels: clamped to ``0 .. n`` (at
     least 1e-6 inside), and widened to 1e-6 about their middle when thinner (a point sample)."""
@@ -28,7 +28,7 @@ def box_edges(lo, hi, n):
     return lo, hi
 
 
-@helper
+@span_helper
 def sat_cell(x, n):
     """Coordinate ``x`` (``0 .. n``) of a summed-area table of ``n`` texels as ``(j, frac)``,
     ``0 <= j < n``: the table's entry ``j`` and the weight of ``j + 1``."""
@@ -36,7 +36,7 @@ def sat_cell(x, n):
     return j, x - j
 
 
-@helper
+@span_helper
 def _sat_at(sat, off, w, h, rows, cols):
     """Bilinear value of a summed-area table (exact integral of the texels) at fractional
     ``(rows, cols)`` inside ``0..h, 0..w``."""
@@ -51,7 +51,7 @@ def _sat_at(sat, off, w, h, rows, cols):
     return (s00 * (1.0 - fi) * (1.0 - fj) + s01 * (1.0 - fi) * fj + s10 * fi * (1.0 - fj) + s11 * fi * fj)
 
 
-@kernel
+@frame_kernel
 def box_average(tex, k, u0, u1, v0, v1):
     """Mean reflectance of texture ``k`` (a decal's: clamped at its edges) over the box
     ``u0..u1 x v0..v1`` (texture units, 1 = the whole texture; ``v`` up); the texels are
@@ -74,7 +74,7 @@ def box_average(tex, k, u0, u1, v0, v1):
     return total / ((b - a) * (d - c))
 
 
-@helper
+@span_helper
 def decal_cover(scene, f, s0, s1, z0, z1, base):
     """Mean reflectance over ``s0..s1 x z0..z1`` of face ``f`` whose own surface there has
     reflectance ``base``: each decal replaces it over its rectangle with its printed face,
@@ -107,14 +107,14 @@ def decal_cover(scene, f, s0, s1, z0, z1, base):
 
 
 
-@helper
+@span_helper
 def _sat_row_span(sat, row, ja, fa, jb, fb):
     """Row ``row`` of a summed-area table (``sat[row:]``) at column ``jb + fb`` minus at ``ja + fa``."""
     return (sat[row + jb] + (sat[row + jb + 1] - sat[row + jb]) * fb
             - sat[row + ja] - (sat[row + ja + 1] - sat[row + ja]) * fa)
 
 
-@helper
+@span_helper
 def _band_cover(scene, span, lo, hi, cover):
     """``cover[q]``, ``cover[n + q]`` (``n = hi + 1 - lo``): the sums over the decals of the face
     span ``span`` of (coverage x printed mean) and of coverage in row ``lo + q``, each decal's
@@ -183,7 +183,7 @@ def _band_cover(scene, span, lo, hi, cover):
             cover[n + q] += (b - a) * inv_sw * share
 
 
-@helper
+@span_helper
 def decal_band(scene, span, lo, hi, buf, cols, irr, lit, cover, acc):
     """Rows ``lo .. hi`` of the face span ``span`` (:class:`~agvsim.sensors.render.ray_records.FaceSpan`)
     that it covers whole and that decals reach: the face's own reflectance (``buf``, ``cols``:

@@ -18,7 +18,7 @@ from agvsim.sensors.render._raycast_decals import decal_band, decal_cover
 from agvsim.sensors.render._raycast_kernels import raster_lookup
 from agvsim.sensors.render._raycast_rows import irr_at, own_reflectance, plain_rows
 from agvsim.sensors.render.ray_records import FaceSpan, SpanLight, TexelColumns
-from agvsim.sensors.render.kernel_jit import helper
+from agvsim.sensors.render.kernel_jit import span_helper
 
 __all__ = ["LIGHT_ROWS", "face_geometry", "shade_face"]
 
@@ -26,7 +26,7 @@ __all__ = ["LIGHT_ROWS", "face_geometry", "shade_face"]
 LIGHT_ROWS = 32.0  # px between the rows where a face's irradiance is evaluated (linear between)
 
 
-@helper
+@span_helper
 def _face_s(view, faces, f, x):
     """Position along face ``f`` (m from its left end) where the ray of image column ``x``
     meets the face's line, clamped to the face."""
@@ -42,7 +42,7 @@ def _face_s(view, faces, f, x):
     return min(max(s, 0.0), faces.length[f])
 
 
-@helper
+@span_helper
 def _face_irradiance(light, f, s, z_top, dz, n, out):
     """Ambient + lamps on face ``f`` at ``s`` (m along it) and the heights ``z_top - m dz``
     (m up), ``m = 0 .. n - 1``, into ``out[:n]``: bilinear in the face's table (cells of
@@ -68,7 +68,7 @@ def _face_irradiance(light, f, s, z_top, dz, n, out):
                   + (t[base + i1] * (1.0 - ts) + t[base + i1 + j1] * ts) * tz)
 
 
-@helper
+@span_helper
 def _texel_column(tex, k, lv, scale, span, buf, bo):
     """Level ``lv`` of texture ``k`` along the face span ``span``
     (:class:`~agvsim.sensors.render.ray_records.FaceSpan`): ``buf[bo + m]`` (float32) = ``scale`` x
@@ -147,7 +147,7 @@ def _texel_column(tex, k, lv, scale, span, buf, bo):
     return n, a - k_lo, b
 
 
-@helper
+@span_helper
 def _edge_rows(scene, span, rows, buf, cols, irr, lit, acc):
     """The rows of the face span ``span`` that it covers in part (``rows``: ``(i_lo, n_top, bot,
     n_bot)``: ``n_top`` rows from ``i_lo``, ``n_bot`` from ``bot``), pixel by pixel: the part's
@@ -170,7 +170,7 @@ def _edge_rows(scene, span, rows, buf, cols, irr, lit, acc):
         acc[i] += span.gain * cov * alb * irr_at(irr, lit, ym)
 
 
-@helper
+@span_helper
 def face_geometry(view, scene, sub, f, z, y0, y1):
     """The :class:`~agvsim.sensors.render.ray_records.FaceSpan` of face ``f`` at depth ``z`` (m)
     over rows ``y0 .. y1`` of the sub-column ``sub``: where its edge rays meet the face, the
@@ -206,7 +206,7 @@ def face_geometry(view, scene, sub, f, z, y0, y1):
                     faces.v0[f] + dvz * (hc + cy * zpy), -dvz * zpy, d_lo, d_hi)
 
 
-@helper
+@span_helper
 def _face_texels(scene, span, buf):
     """The span's texture, filtered as the pyrender reference samples it (2 x 2 supersampling,
     each sample trilinear at the supersampled footprint): ``u`` is fixed across the span and ``v``
@@ -233,7 +233,7 @@ def _face_texels(scene, span, buf):
     return TexelColumns(b0, n0, t0a, t0b, b1, n1, t1a, t1b)
 
 
-@helper
+@span_helper
 def shade_face(view, scene, sub, f, z, y0, y1, work, depth):
     """Add the radiance of face ``f`` (depth ``z`` m along the axis) over rows ``y0 .. y1`` of the
     sub-column ``sub`` (:class:`~agvsim.sensors.render.ray_records.SubColumn`: its weight) to

@@ -71,7 +71,7 @@ def floor_rows(view, scene, work):
     light = scene.light
     irr_raster = light.floor_zone_irradiance if zoned else light.floor_irradiance
     gain32 = np.float32(1.0 if zoned else view.level)
-    irr = irr_raster.ravel()
+    irr = irr_raster.reshape(irr_raster.size)
     ucols = np.uint64(irr_raster.shape[1])
     for i in range(h):
         j_lo = work.row_lo[i]

@@ -15,23 +15,23 @@ import numpy as np
 
 from agvsim.sensors.render._raycast_column import shade_column
 from agvsim.sensors.render._raycast_floor import floor_rows
-from agvsim.sensors.render._raycast_kernels import MAX_SPANS, bin_solids, cast_ray, same_spans
+from agvsim.sensors.render._raycast_kernels import MAX_SPANS, cast_ray, same_spans
 from agvsim.sensors.render._sensor_kernels import column_counter, expose_flat, store_columns
 from agvsim.sensors.render.ray_records import EXPOSE_BLOCK, SubColumn
-from agvsim.sensors.render.kernel_jit import helper, kernel
+from agvsim.sensors.render.kernel_jit import frame_kernel, helper, span_helper
 
 __all__ = ["render_view"]
 
 _FACE, _FLAT, _BACKGROUND = 0, 1, 2  # agvsim.sensors.render.ray_records.SpanKind
 
 
-@helper
+@span_helper
 def _whole_rows(y0, y1, h):
     """``(lo, hi)``: the rows ``0 <= i < h`` the span ``y0 .. y1`` covers whole (none if ``hi < lo``)."""
     return max(int(math.ceil(y0 + 0.5)), 0), min(int(math.floor(y1 - 0.5)), h - 1)
 
 
-@helper
+@span_helper
 def _zero_outside(acc, lo, hi):
     """``acc`` set to 0 but at ``lo .. hi`` (everywhere if ``hi < lo``; ``lo <= acc.size``)."""
     for i in range(np.uint64(lo)):  # (unsigned: vectorised fills)
@@ -85,7 +85,7 @@ def _floor_extent(view, work):
                     row_hi[i] = jb  # the rays come in column order
 
 
-@helper
+@span_helper
 def _mean_spans(work, j, h):
     """Column ``j``, whose two edge rays see the same spans: their mean into ``work.spans`` (the
     span edges are straight across the column; 1/Z is affine across a face). Returns ``(s_lo,
@@ -128,7 +128,7 @@ def _mean_spans(work, j, h):
     return s_lo, s_hi
 
 
-@helper
+@span_helper
 def _split_column(view, scene, cands, j, work, dcol):
     """Column ``j``, which a silhouette crosses: ``view.subcolumns`` sub-columns, each cast from its
     centre ray and shaded over its own footprint into ``work.acc`` (zeroed first); the one holding
@@ -148,7 +148,7 @@ def _split_column(view, scene, cands, j, work, dcol):
         shade_column(view, scene, SubColumn(j, x0, x1, 1.0 / sub, x0 <= j < x1, none_lo, none_hi), n_c, work, dcol)
 
 
-@helper
+@span_helper
 def _store_column(work, j, s_lo, s_hi, radiance_t, params, image):
     """Column ``j``'s radiance, contiguous in the frame (``radiance_t[j]``), or exposed into a
     block of columns stored in the 8-bit ``image`` a block at a time (``image`` not ``(0, 0)``):
@@ -173,13 +173,41 @@ def _store_column(work, j, s_lo, s_hi, radiance_t, params, image):
             store_columns(cols, j - q, q + 1, image)
 
 
-@kernel
-def render_view(view, scene, radiance_t, depth_t, work, params, image):
+@helper
+def _column_pass(view, scene, cands, radiance_t, depth_t, work, params, image):
+    """:func:`render_view`'s third pass (arguments as its): each column's spans shaded into
+    ``work.acc`` and stored (the per-column and per-span functions it calls are inlined into it:
+    :data:`~agvsim.sensors.render.kernel_jit.span_helper`)."""
+    w = view.width
+    h = view.height
+    floor_depth = work.floor_depth
+    e = work.edges
+    every = np.bool_(True)
+    for j in range(w):
+        dcol = depth_t[np.uint64(j)]
+        oa = j * MAX_SPANS
+        if same_spans(e.kind, e.id, work.e_n[j], oa, work.e_n[j + 1], oa + MAX_SPANS):
+            s_lo, s_hi = _mean_spans(work, j, h)
+            _zero_outside(work.acc, s_lo, s_hi)
+            for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # the rows kept from the floor pass
+                dcol[i] = floor_depth[i]
+            shade_column(view, scene, SubColumn(j, j - 0.5, j + 0.5, 1.0, every, s_lo, s_hi), work.e_n[j + 1], work,
+                         dcol)
+        else:
+            s_lo, s_hi = h, -1
+            _split_column(view, scene, cands, j, work, dcol)
+        _store_column(work, j, s_lo, s_hi, radiance_t, params, image)
+
+
+@frame_kernel
+def render_view(view, scene, cands, radiance_t, depth_t, work, params, image):
     """Draw one level frame, column-major.
 
     Args:
         view: the camera (:class:`~agvsim.sensors.render.ray_records.View`).
         scene: the map's :class:`~agvsim.sensors.render.ray_records.Scene`.
+        cands: ``(start, items)``, the solids that may cross each column
+            (:func:`~agvsim.sensors.render._raycast_kernels.bin_solids` of the view).
         radiance_t: out ``(W, H)`` float32, C-contiguous: radiance (relative), column ``j`` of
             the image at ``radiance_t[j]`` (the transpose of the ``(H, W)`` frame).
         depth_t: out ``(W, H)`` float32, C-contiguous: depth (m along the optical axis, 0 =
@@ -204,26 +232,7 @@ def render_view(view, scene, radiance_t, depth_t, work, params, image):
     values from there as they are (the sum it would take, 0 + 1 x the pass's value, is that
     value) and the floor's depth.
     """
-    w = view.width
-    h = view.height
-    cands = bin_solids(view, scene.solids)
     _edge_spans(view, scene, cands, work)
     _floor_extent(view, work)
     floor_rows(view, scene, work)
-    floor_depth = work.floor_depth
-    e = work.edges
-    every = np.bool_(True)
-    for j in range(w):
-        dcol = depth_t[np.uint64(j)]
-        oa = j * MAX_SPANS
-        if same_spans(e.kind, e.id, work.e_n[j], oa, work.e_n[j + 1], oa + MAX_SPANS):
-            s_lo, s_hi = _mean_spans(work, j, h)
-            _zero_outside(work.acc, s_lo, s_hi)
-            for i in range(np.uint64(s_lo), np.uint64(max(s_hi + 1, s_lo))):  # the rows kept from the floor pass
-                dcol[i] = floor_depth[i]
-            shade_column(view, scene, SubColumn(j, j - 0.5, j + 0.5, 1.0, every, s_lo, s_hi), work.e_n[j + 1], work,
-                         dcol)
-        else:
-            s_lo, s_hi = h, -1
-            _split_column(view, scene, cands, j, work, dcol)
-        _store_column(work, j, s_lo, s_hi, radiance_t, params, image)
+    _column_pass(view, scene, cands, radiance_t, depth_t, work, params, image)

@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from agvsim.sensors.render.kernel_jit import helper
+from agvsim.sensors.render.kernel_jit import kernel, span_helper
 
 __all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "cast_ray", "lamp_irradiance", "raster_lookup", "same_spans"]
 
@@ -41,7 +41,7 @@ FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
 
 
 # ------------------------------------------------------------------ lighting
-@helper
+@span_helper
 def lamp_irradiance(light, px, py, pz, nx, ny, nz):
     """Irradiance from the 3 x 3 ceiling lamps nearest ``(px, py, pz)`` on a surface of unit
     normal ``n`` (:meth:`agvsim.sensors.render.lighting.Illumination.lamp_irradiance`)."""
@@ -63,7 +63,7 @@ def lamp_irradiance(light, px, py, pz, nx, ny, nz):
     return total * light.gain
 
 
-@helper
+@span_helper
 def raster_lookup(light, raster, x, y):
     """Bilinear value of a lighting raster at map point ``(x, y)`` (edges replicated)."""
     mx = (x - light.raster_x0) / light.raster_res
@@ -82,7 +82,7 @@ def raster_lookup(light, raster, x, y):
 
 
 # ------------------------------------------------------------------ rays
-@helper
+@span_helper
 def _ray_hits(view, solids, dx, dy, cands, c0, n_cand, hits):
     """The prisms among ``cands[c0:c0 + n_cand]`` that the ray from the lens along ``(dx, dy)``
     (floor plan, per metre of depth) crosses beyond the near plane, into ``hits``
@@ -132,7 +132,7 @@ def _ray_hits(view, solids, dx, dy, cands, c0, n_cand, hits):
     return n
 
 
-@helper
+@span_helper
 def _floor_interval(floor, ox, oy, dx, dy):
     """``(f_in, f_out)``: the depths (m) between which the ray from ``(ox, oy)`` along ``(dx, dy)``
     is over the floor rectangle (``f_out < f_in``: never)."""
@@ -155,7 +155,7 @@ def _floor_interval(floor, ox, oy, dx, dy):
     return f_in, f_out
 
 
-@helper
+@span_helper
 def _put_span(spans, at, y0, y1, kind, sid, val):
     """Span ``at`` of ``spans`` (:class:`~agvsim.sensors.render.ray_records.SpanBuffer`)."""
     spans.y0[at] = y0
@@ -165,7 +165,7 @@ def _put_span(spans, at, y0, y1, kind, sid, val):
     spans.val[at] = val
 
 
-@helper
+@span_helper
 def cast_ray(view, scene, x, cands, c0, n_cand, hits, spans, so):
     """The spans of the column ray at image ``x``, front to back.
 
@@ -188,7 +188,7 @@ def cast_ray(view, scene, x, cands, c0, n_cand, hits, spans, so):
     return _walk_profile(view, solids, hits, n, f_in, f_out, spans, so)
 
 
-@helper
+@span_helper
 def _next_event(hits, n, cursor, z_a, f_in, f_out):
     """``(z_b, cursor)``: the next depth after ``z_a`` where the ray enters or leaves a prism or
     the floor (1e300: none), and the first hit entered after ``z_a``."""
@@ -207,7 +207,7 @@ def _next_event(hits, n, cursor, z_a, f_in, f_out):
     return z_b, cursor
 
 
-@helper
+@span_helper
 def _walk_profile(view, solids, hits, n, f_in, f_out, spans, so):
     """:func:`cast_ray`'s walk along the ray's height profile (the ``n`` hits, the floor over
     ``f_in .. f_out``), front to back: a face span where the profile rises, a flat span over
@@ -264,7 +264,7 @@ def _walk_profile(view, solids, hits, n, f_in, f_out, spans, so):
 _SAME_EDGE = 1e-7
 
 
-@helper
+@span_helper
 def _meet(y, top):
     """A span's lower end ``y`` (px) against ``top``, the upper end of the span below it:
     ``min(y, top)``, and ``top`` itself when they differ by rounding only (the two are the same
@@ -273,7 +273,7 @@ def _meet(y, top):
     return top if y >= top - _SAME_EDGE else y
 
 
-@helper
+@kernel
 def bin_solids(view, solids):
     """CSR lists ``(start (W + 1,), items)`` of the solids whose outline may cross each column."""
     w = view.width
@@ -341,7 +341,7 @@ def bin_solids(view, solids):
     return start, items
 
 
-@helper
+@span_helper
 def same_spans(kind, ids, n_a, oa, n_b, ob):
     """Whether the ``n_a`` spans at ``oa`` and the ``n_b`` at ``ob`` of ``kind`` and ``ids`` are of
     the same kinds and ids, in order."""

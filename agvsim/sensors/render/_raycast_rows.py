@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from agvsim.sensors.render.kernel_jit import helper
+from agvsim.sensors.render.kernel_jit import span_helper
 
 __all__ = ["FIXED_BITS", "irr_at", "own_reflectance", "plain_rows"]
 
@@ -25,13 +25,13 @@ _UBITS = np.uint64(FIXED_BITS)
 _UMASK = np.uint64((1 << FIXED_BITS) - 1)
 
 
-@helper
+@span_helper
 def _fixed(x):
     """``x >= 0`` texels as a fixed-point integer (:data:`FIXED_BITS` fractional bits), unsigned."""
     return np.uint64(np.int64(x * _FIXED_ONE))
 
 
-@helper
+@span_helper
 def _lerp_fixed(buf, o, p):
     """``buf[o:]`` interpolated linearly at the fixed-point coordinate ``p`` (unsigned: array
     indices without a test for negative ones)."""
@@ -39,7 +39,7 @@ def _lerp_fixed(buf, o, p):
     return buf[q] + (buf[q + _U1] - buf[q]) * (np.float32(np.int64(p & _UMASK)) * _FIXED_INV)
 
 
-@helper
+@span_helper
 def _column_at(buf, o, t, n):
     """Linear interpolation of the ``n`` entries ``buf[o:o + n]`` at coordinate ``t`` (clamped)."""
     if t < 0.0:
@@ -51,7 +51,7 @@ def _column_at(buf, o, t, n):
     return buf[a] + (buf[a + _U1] - buf[a]) * (t - q)
 
 
-@helper
+@span_helper
 def own_reflectance(buf, cols, ym):
     """The face's own reflectance at row coordinate ``ym``: its two subsample rows (``ym -+
     1/4``), trilinear between the span's two levels (``cols``:
@@ -66,7 +66,7 @@ def own_reflectance(buf, cols, ym):
     return 0.5 * own
 
 
-@helper
+@span_helper
 def irr_at(irr, lit, ym):
     """The span's irradiance at row coordinate ``ym`` (``lit``:
     :class:`~agvsim.sensors.render.ray_records.SpanLight` of ``irr``; linear between samples)."""
@@ -75,7 +75,7 @@ def irr_at(irr, lit, ym):
     return irr[mm] + (irr[mm + 1] - irr[mm]) * (qq - mm)
 
 
-@helper
+@span_helper
 def plain_rows(lo, hi, g, buf, cols, irr, lit, acc):
     """Rows ``lo .. hi`` of a face span that covers them whole, no decal among them, into ``acc``:
     ``g`` x the sum of the two subsamples of each level (``buf``, ``cols``:

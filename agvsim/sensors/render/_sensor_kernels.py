@@ -33,7 +33,7 @@ import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros
 
 from agvsim.sensors.render.ray_records import EXPOSE_BLOCK
-from agvsim.sensors.render.kernel_jit import helper, kernel
+from agvsim.sensors.render.kernel_jit import frame_kernel, helper, kernel
 
 __all__ = ["EXPOSE_BLOCK", "column_counter", "expose", "expose_columns", "expose_flat", "expose_scratch",
            "nearest_depth", "normal_pair", "pair_bits", "splitmix64", "standard_normals", "store_8x8", "store_columns"]
@@ -119,7 +119,7 @@ def normal_pair(bits_r, bits_a):
     return r * c, r * s
 
 
-@kernel
+@frame_kernel
 def standard_normals(seed, out):
     """Fill ``out`` (1-D float32) with the normals :func:`expose` adds to a frame of ``out.size``
     pixels with this ``seed`` (int < 2**63), in pixel order, unscaled."""
@@ -184,7 +184,7 @@ def expose_flat(x, o, params, c):
         o[m] = np.uint8(min(np.int32(max(v, _ZERO)), top))
 
 
-@kernel
+@frame_kernel
 def expose(radiance, params, out):
     """Radiance -> 8-bit grey (:func:`agvsim.sensors.render.sensor.expose`'s model): ``g = scale
     radiance + flare``, plus ``z sqrt(max(g, 0) / electrons_per_grey + read_noise**2) noise_scale``
@@ -243,7 +243,7 @@ def expose_scratch(height: int) -> np.ndarray:
     return np.empty((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8)
 
 
-@kernel
+@frame_kernel
 def expose_columns(radiance_t, params, out, cols):
     """:func:`expose` of a column-major frame into a row-major 8-bit frame.
 

@@ -93,6 +93,7 @@ class RaycastBackend:
         order, e.g. from :func:`frame_buffers`, reused frame after frame: pages already mapped).
         ``np.ascontiguousarray`` gives a row-major copy where one is needed."""
         from agvsim.sensors.render._raycast_frame import render_view
+        from agvsim.sensors.render._raycast_kernels import bin_solids
 
         radiance, depth = out if out is not None else frame_buffers(view.width, view.height)
         shape = (view.height, view.width)
@@ -103,7 +104,8 @@ class RaycastBackend:
                     if isinstance(a, np.ndarray) else type(a).__name__
                 raise ValueError(f"draw_level(out=) needs two writeable {shape} float32 arrays in column-major "
                                  f"(Fortran) order, as frame_buffers() makes; got {got}")
-        render_view(view, self.scene, radiance.T, depth.T, self._scratch(view.width, view.height), _NO_SENSOR, _NO_IMAGE)
+        render_view(view, self.scene, bin_solids(view, self.solids), radiance.T, depth.T,
+                    self._scratch(view.width, view.height), _NO_SENSOR, _NO_IMAGE)
         return radiance, depth
 
     def draw_exposed(self, view: View, params: SensorParams, image: np.ndarray, depth: np.ndarray) -> None:
@@ -112,6 +114,7 @@ class RaycastBackend:
         :meth:`draw_level`'s radiance with ``params`` (bit for bit), and ``depth`` (as
         :meth:`draw_level`'s ``out``) with the depth; the radiance is never stored."""
         from agvsim.sensors.render._raycast_frame import render_view
+        from agvsim.sensors.render._raycast_kernels import bin_solids
 
         shape = (view.height, view.width)
         if (not isinstance(image, np.ndarray) or image.shape != shape or image.dtype != np.uint8
@@ -120,7 +123,8 @@ class RaycastBackend:
         if (not isinstance(depth, np.ndarray) or depth.shape != shape or depth.dtype != np.float32
                 or not depth.T.flags.c_contiguous or not depth.flags.writeable):
             raise ValueError(f"draw_exposed(depth=) needs a writeable {shape} float32 array in column-major order")
-        render_view(view, self.scene, depth.T, depth.T, self._scratch(view.width, view.height), params, image)
+        render_view(view, self.scene, bin_solids(view, self.solids), depth.T, depth.T,
+                    self._scratch(view.width, view.height), params, image)
 
     def _scratch(self, width: int, height: int) -> FrameScratch:
         """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""
