@@ -2,7 +2,10 @@
 
 The scene is flattened once per map into the array tuples below (:class:`Solids`,
 :class:`Faces`, :class:`Decals`, :class:`Textures`, :class:`Light`, :class:`Floor`) by
-:mod:`agvsim.sensors.render.raycast`; each frame adds a :class:`View`. Units: metres,
+:mod:`agvsim.sensors.render.raycast` and held together as one :class:`Scene`; each frame
+adds a :class:`View`, and the frame kernels hand the scalar records :class:`SubColumn`,
+:class:`FaceSpan`, :class:`TexelColumns` and :class:`SpanLight` to their helpers (scalars
+only: no array is copied per column or span). Units: metres,
 pixels, radians; map frame x east, y north, z up. The sensor stages take a
 :class:`SensorParams` (:mod:`agvsim.sensors.render._sensor_kernels`) and a
 :class:`MotionBlurParams` (:mod:`agvsim.sensors.render._motion_blur_kernels`) per frame and a
