@@ -1,5 +1,5 @@
 """The numba compilation flags, in one place: the localizer's kernels (:data:`jit`, :data:`inline`)
-and the simulator's frame kernels (:data:`fast_jit`, :data:`fast_inline`, at the end).
+and the simulator's frame kernels (:data:`fast_jit`, at the end).
 
 Every compiled kernel of :mod:`localizer` is decorated with :data:`jit`::
 
@@ -44,7 +44,7 @@ import numba.core.event
 import numba.extending
 
 
-__all__ = ["COMPILE_NOTICE", "CompileCounter", "borrowed", "fast_inline", "fast_jit", "inline", "jit", "prefetch", "quiet_compile_notice"]
+__all__ = ["COMPILE_NOTICE", "CompileCounter", "fast_jit", "inline", "jit", "prefetch", "quiet_compile_notice"]
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)
@@ -58,46 +58,6 @@ inline = numba.njit(cache=True, nogil=True, inline="always")
 #: last bits between machines or numba versions, never between two runs on one machine, so
 #: the same seed still gives the same frame bit for bit. The localizer keeps :data:`jit`.
 fast_jit = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-#: :data:`fast_jit` inlined into its callers
-fast_inline = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
-
-
-# ------------------------------------------------------------------ borrowed arrays
-@numba.extending.intrinsic
-def borrowed(typingctx, x):
-    """``x`` (an array, or a tuple or named tuple of arrays and scalars) with every array's
-    reference to its owner dropped: the same data, shape and strides, no meminfo.
-
-    A numba array carries a pointer to its owner's reference count, which numba increments
-    and decrements (atomically: ``lock`` instructions) every time the array is copied into a
-    variable: passing a record of arrays to an inlined helper costs two atomic operations per
-    array, per call, and in a kernel's innermost loops that is a tenth of its time. A borrowed
-    array has no owner to count: those operations become a test for a null pointer.
-
-    The owner must outlive every use of the borrowed arrays: borrow a kernel's arguments (the
-    caller holds them for the call), never an array allocated in the kernel, and never return
-    one or store it anywhere that outlives the call.
-    """
-    if not isinstance(x, (numba.types.Array, numba.types.BaseTuple)):
-        return None
-
-    def codegen(context, builder, signature, args):
-        def strip(ty, val):
-            if isinstance(ty, numba.types.Array):
-                ary = context.make_array(ty)(context, builder, value=val)
-                ary.meminfo = context.get_constant_null(numba.types.MemInfoPointer(ty.dtype))
-                ary.parent = context.get_constant_null(numba.types.pyobject)
-                return ary._getvalue()
-            if isinstance(ty, numba.types.BaseTuple):
-                out = val
-                for k, member in enumerate(ty):
-                    out = builder.insert_value(out, strip(member, builder.extract_value(val, k)), k)
-                return out
-            return val
-
-        return strip(signature.args[0], args[0])
-
-    return x(x), codegen
 
 
 # ------------------------------------------------------------------ prefetch

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agvsim.sensors.render._raycast_kernels import box_average
+from agvsim.sensors.render._raycast_decals import box_average
 from agvsim.sensors.render.lighting import Illumination
 from agvsim.sensors.render.raycast import FLOOR_KEY, RaycastBackend
 from agvsim.sensors.render.scene import build_scene

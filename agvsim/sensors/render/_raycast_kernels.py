@@ -30,11 +30,9 @@ import math
 
 import numpy as np
 
-from localizer._jit import fast_inline as inline
-from localizer._jit import fast_jit as jit
+from agvsim.sensors.render.kernel_jit import kernel, span_helper
 
-__all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "box_average", "box_edges", "cast_ray", "decal_cover", "lamp_irradiance",
-           "raster_lookup", "same_spans", "sat_cell"]
+__all__ = ["FAR", "MAX_HITS", "MAX_SPANS", "bin_solids", "cast_ray", "lamp_irradiance", "raster_lookup", "same_spans"]
 
 MAX_SPANS = 96  # spans per ray (a column crossing every rack of a plant sees ~20)
 MAX_HITS = 96  # prisms crossed per ray
@@ -42,97 +40,8 @@ _FACE, _FLAT, _BACKGROUND = 0, 1, 2  # agvsim.sensors.render.ray_records.SpanKin
 FAR = 1.0e4  # m, depth of the horizon for flat spans that run to infinity
 
 
-# ------------------------------------------------------------------ textures
-@inline
-def box_edges(lo, hi, n):
-    """A box's edges ``lo <= hi`` (texels) on a table of ``n`` texels: clamped to ``0 .. n`` (at
-    least 1e-6 inside), and widened to 1e-6 about their middle when thinner (a point sample)."""
-    lo = min(max(lo, 0.0), n - 1e-6)
-    hi = min(max(hi, 1e-6), float(n))
-    if hi - lo < 1e-6:
-        m = 0.5 * (lo + hi)
-        lo, hi = m - 5e-7, m + 5e-7
-    return lo, hi
-
-
-@inline
-def sat_cell(x, n):
-    """Coordinate ``x`` (``0 .. n``) of a summed-area table of ``n`` texels as ``(j, frac)``,
-    ``0 <= j < n``: the table's entry ``j`` and the weight of ``j + 1``."""
-    j = min(max(int(math.floor(x)), 0), n - 1)
-    return j, x - j
-
-
-@inline
-def _sat_at(sat, off, w, h, rows, cols):
-    """Bilinear value of a summed-area table (exact integral of the texels) at fractional
-    ``(rows, cols)`` inside ``0..h, 0..w``."""
-    i, fi = sat_cell(rows, h)
-    j, fj = sat_cell(cols, w)
-    stride = w + 1
-    base = off + i * stride + j
-    s00 = sat[base]
-    s01 = sat[base + 1]
-    s10 = sat[base + stride]
-    s11 = sat[base + stride + 1]
-    return (s00 * (1.0 - fi) * (1.0 - fj) + s01 * (1.0 - fi) * fj + s10 * fi * (1.0 - fj) + s11 * fi * fj)
-
-
-@jit
-def box_average(tex, k, u0, u1, v0, v1):
-    """Mean reflectance of texture ``k`` (a decal's: clamped at its edges) over the box
-    ``u0..u1 x v0..v1`` (texture units, 1 = the whole texture; ``v`` up); the texels are
-    constant squares, so this is exact. Boxes thinner than 1e-6 of a texel are widened to
-    that (a point sample)."""
-    w = tex.width[k]
-    h = tex.height[k]
-    off = tex.offset[k]
-    a, b = (u0, u1) if u0 <= u1 else (u1, u0)
-    c, d = (v0, v1) if v0 <= v1 else (v1, v0)
-    a *= w
-    b *= w
-    c *= h
-    d *= h
-    a, b = box_edges(a, b, w)
-    c, d = box_edges(c, d, h)
-    sat = tex.sat
-    total = (_sat_at(sat, off, w, h, d, b) - _sat_at(sat, off, w, h, d, a)
-             - _sat_at(sat, off, w, h, c, b) + _sat_at(sat, off, w, h, c, a))
-    return total / ((b - a) * (d - c))
-
-
-@jit
-def decal_cover(faces, decals, tex, f, s0, s1, z0, z1, base):
-    """Mean reflectance over ``s0..s1 x z0..z1`` of face ``f`` whose own surface there has
-    reflectance ``base``: each decal replaces it over its rectangle with its printed face,
-    integrated exactly (summed-area table)."""
-    if s1 < s0:
-        s0, s1 = s1, s0
-    if s1 - s0 < 1e-9:
-        s1 = s0 + 1e-9
-    if z1 < z0:
-        z0, z1 = z1, z0
-    if z1 - z0 < 1e-9:
-        z1 = z0 + 1e-9
-    area = (s1 - s0) * (z1 - z0)
-    total = base * area
-    for d in range(faces.decal_start[f], faces.decal_start[f + 1]):
-        a = max(s0, decals.s0[d])
-        b = min(s1, decals.s1[d])
-        c = max(z0, decals.z0[d])
-        e = min(z1, decals.z1[d])
-        if b <= a or e <= c:
-            continue
-        dw = decals.s1[d] - decals.s0[d]
-        dh = decals.z1[d] - decals.z0[d]
-        printed = box_average(tex, decals.texture[d], (a - decals.s0[d]) / dw, (b - decals.s0[d]) / dw,
-                              (c - decals.z0[d]) / dh, (e - decals.z0[d]) / dh)
-        total += (printed - base) * (b - a) * (e - c)
-    return total / area
-
-
 # ------------------------------------------------------------------ lighting
-@inline
+@span_helper
 def lamp_irradiance(light, px, py, pz, nx, ny, nz):
     """Irradiance from the 3 x 3 ceiling lamps nearest ``(px, py, pz)`` on a surface of unit
     normal ``n`` (:meth:`agvsim.sensors.render.lighting.Illumination.lamp_irradiance`)."""
@@ -154,7 +63,7 @@ def lamp_irradiance(light, px, py, pz, nx, ny, nz):
     return total * light.gain
 
 
-@inline
+@span_helper
 def raster_lookup(light, raster, x, y):
     """Bilinear value of a lighting raster at map point ``(x, y)`` (edges replicated)."""
     mx = (x - light.raster_x0) / light.raster_res
@@ -173,29 +82,21 @@ def raster_lookup(light, raster, x, y):
 
 
 # ------------------------------------------------------------------ rays
-@inline
-def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_solid, hit_edge,
-             sp_y0, sp_y1, sp_kind, sp_id, sp_val, so):
-    """The spans of the column ray at image ``x``, front to back.
-
-    Args:
-        items[c0:c0 + n_cand]: the solids that may cross this ray.
-        hit_*: scratch ``(MAX_HITS,)``. sp_*: out ``(so + MAX_SPANS,)``, from ``so`` on: rows
-            ``y0..y1``, kind (:class:`SpanKind`), id (face; solid or -1 for flat; -2
-            background) and value (depth Z of a face, m; height of a flat span, m). (Offsets,
-            not views: a view per ray costs two atomic reference counts.)
-    Returns:
-        the number of spans (they cover ``-0.5 .. height - 0.5`` from the bottom up).
-    """
-    xn = (x - view.cx) / view.fx
-    dx = view.fwd_x + xn * view.right_x
-    dy = view.fwd_y + xn * view.right_y
+@span_helper
+def _ray_hits(view, solids, dx, dy, cands, c0, n_cand, hits):
+    """The prisms among ``cands[c0:c0 + n_cand]`` that the ray from the lens along ``(dx, dy)``
+    (floor plan, per metre of depth) crosses beyond the near plane, into ``hits``
+    (:class:`~agvsim.sensors.render.ray_records.Hits`) by entry depth; returns their number."""
     ox = view.cam_x
     oy = view.cam_y
     near = view.near
+    hit_in = hits.t_in
+    hit_out = hits.t_out
+    hit_solid = hits.solid
+    hit_edge = hits.edge
     n = 0
     for c in range(n_cand):
-        p = items[c0 + c]
+        p = cands[c0 + c]
         t_in = -1e300
         t_out = 1e300
         e_in = -1
@@ -228,7 +129,13 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
             hit_solid[k] = p
             hit_edge[k] = e_in
             n += 1
-    # the floor rectangle
+    return n
+
+
+@span_helper
+def _floor_interval(floor, ox, oy, dx, dy):
+    """``(f_in, f_out)``: the depths (m) between which the ray from ``(ox, oy)`` along ``(dx, dy)``
+    is over the floor rectangle (``f_out < f_in``: never)."""
     f_in = -1e300
     f_out = 1e300
     if dx != 0.0:
@@ -245,7 +152,67 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
         f_out = min(f_out, max(a, b))
     elif not floor.y0 <= oy <= floor.y1:
         f_out = -1e300
+    return f_in, f_out
 
+
+@span_helper
+def _put_span(spans, at, y0, y1, kind, sid, val):
+    """Span ``at`` of ``spans`` (:class:`~agvsim.sensors.render.ray_records.SpanBuffer`)."""
+    spans.y0[at] = y0
+    spans.y1[at] = y1
+    spans.kind[at] = kind
+    spans.id[at] = sid
+    spans.val[at] = val
+
+
+@span_helper
+def cast_ray(view, scene, x, cands, c0, n_cand, hits, spans, so):
+    """The spans of the column ray at image ``x``, front to back.
+
+    Args:
+        scene: :class:`~agvsim.sensors.render.ray_records.Scene` (its solids and floor read).
+        cands[c0:c0 + n_cand]: the solids that may cross this ray.
+        hits: :class:`~agvsim.sensors.render.ray_records.Hits` scratch.
+        spans: :class:`~agvsim.sensors.render.ray_records.SpanBuffer`, out from ``so`` on
+            (``MAX_SPANS`` of them at most). (An offset, not a view: a view per ray costs two
+            atomic reference counts.)
+    Returns:
+        the number of spans (they cover ``-0.5 .. height - 0.5`` from the bottom up).
+    """
+    solids = scene.solids
+    xn = (x - view.cx) / view.fx
+    dx = view.fwd_x + xn * view.right_x
+    dy = view.fwd_y + xn * view.right_y
+    n = _ray_hits(view, solids, dx, dy, cands, c0, n_cand, hits)
+    f_in, f_out = _floor_interval(scene.floor, view.cam_x, view.cam_y, dx, dy)
+    return _walk_profile(view, solids, hits, n, f_in, f_out, spans, so)
+
+
+@span_helper
+def _next_event(hits, n, cursor, z_a, f_in, f_out):
+    """``(z_b, cursor)``: the next depth after ``z_a`` where the ray enters or leaves a prism or
+    the floor (1e300: none), and the first hit entered after ``z_a``."""
+    z_b = 1e300
+    while cursor < n and hits.t_in[cursor] <= z_a:
+        cursor += 1
+    if cursor < n:
+        z_b = hits.t_in[cursor]
+    for k in range(n):
+        if z_a < hits.t_out[k] < z_b:
+            z_b = hits.t_out[k]
+    if z_a < f_in < z_b:
+        z_b = f_in
+    if z_a < f_out < z_b:
+        z_b = f_out
+    return z_b, cursor
+
+
+@span_helper
+def _walk_profile(view, solids, hits, n, f_in, f_out, spans, so):
+    """:func:`cast_ray`'s walk along the ray's height profile (the ``n`` hits, the floor over
+    ``f_in .. f_out``), front to back: a face span where the profile rises, a flat span over
+    each interval below the lens, the background above what is left."""
+    near = view.near
     fy = view.fy
     cy = view.cy
     hc = view.cam_z
@@ -253,41 +220,25 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
     ns = 0
     z_a = near
     h_prev = 0.0 if f_in <= near < f_out else -1.0
-    cursor = 0
+    cursor = np.int64(0)
     while top > -0.5 and ns < MAX_SPANS - 2:
-        # the next event after z_a: an entry, an exit or a floor edge
-        z_b = 1e300
-        while cursor < n and hit_in[cursor] <= z_a:
-            cursor += 1
-        if cursor < n:
-            z_b = hit_in[cursor]
-        for k in range(n):
-            if z_a < hit_out[k] < z_b:
-                z_b = hit_out[k]
-        if z_a < f_in < z_b:
-            z_b = f_in
-        if z_a < f_out < z_b:
-            z_b = f_out
+        z_b, cursor = _next_event(hits, n, cursor, z_a, f_in, f_out)
         z_m = 0.5 * (z_a + z_b) if z_b < 1e299 else z_a + 1.0
         # the profile's height on (z_a, z_b) and the solid that sets it
         h = 0.0 if f_in <= z_m < f_out else -1.0
         best = -1
         for k in range(n):
-            if hit_in[k] <= z_m < hit_out[k] and solids.height[hit_solid[k]] > h:
-                h = solids.height[hit_solid[k]]
+            if hits.t_in[k] <= z_m < hits.t_out[k] and solids.height[hits.solid[k]] > h:
+                h = solids.height[hits.solid[k]]
                 best = k
-        if best >= 0 and h > h_prev and hit_in[best] >= z_a - 1e-12 and hit_in[best] > near:
-            face = solids.edge_face[hit_edge[best]]
-            z = hit_in[best]
+        if best >= 0 and h > h_prev and hits.t_in[best] >= z_a - 1e-12 and hits.t_in[best] > near:
+            face = solids.edge_face[hits.edge[best]]
+            z = hits.t_in[best]
             y_hi = cy + fy * (hc - h) / z
             y_lo = cy + fy * (hc - max(h_prev, 0.0)) / z
             y1 = _meet(y_lo, top)
             if face >= 0 and y_hi < y1:
-                sp_y0[so + ns] = max(y_hi, -0.5)
-                sp_y1[so + ns] = y1
-                sp_kind[so + ns] = _FACE
-                sp_id[so + ns] = face
-                sp_val[so + ns] = z
+                _put_span(spans, so + ns, max(y_hi, -0.5), y1, np.int64(_FACE), face, z)
                 ns += 1
             top = min(top, y_hi)
         if 0.0 <= h < hc and top > -0.5:
@@ -295,11 +246,8 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
             y_far = cy + fy * (hc - h) / z_b if z_b < FAR else cy + fy * (hc - h) / FAR
             y1 = _meet(y_near, top)
             if y_far < y1:
-                sp_y0[so + ns] = max(y_far, -0.5)
-                sp_y1[so + ns] = y1
-                sp_kind[so + ns] = _FLAT
-                sp_id[so + ns] = hit_solid[best] if best >= 0 else -1
-                sp_val[so + ns] = h
+                _put_span(spans, so + ns, max(y_far, -0.5), y1, np.int64(_FLAT), hits.solid[best] if best >= 0 else np.int64(-1),
+                          h)
                 ns += 1
             top = min(top, y_far)
         h_prev = h
@@ -307,11 +255,7 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
             break
         z_a = z_b
     if top > -0.5:
-        sp_y0[so + ns] = -0.5
-        sp_y1[so + ns] = top
-        sp_kind[so + ns] = _BACKGROUND
-        sp_id[so + ns] = -2
-        sp_val[so + ns] = 0.0
+        _put_span(spans, so + ns, -0.5, top, np.int64(_BACKGROUND), np.int64(-2), 0.0)
         ns += 1
     return ns
 
@@ -320,7 +264,7 @@ def cast_ray(view, solids, floor, x, items, c0, n_cand, hit_in, hit_out, hit_sol
 _SAME_EDGE = 1e-7
 
 
-@inline
+@span_helper
 def _meet(y, top):
     """A span's lower end ``y`` (px) against ``top``, the upper end of the span below it:
     ``min(y, top)``, and ``top`` itself when they differ by rounding only (the two are the same
@@ -329,7 +273,7 @@ def _meet(y, top):
     return top if y >= top - _SAME_EDGE else y
 
 
-@jit
+@kernel
 def bin_solids(view, solids):
     """CSR lists ``(start (W + 1,), items)`` of the solids whose outline may cross each column."""
     w = view.width
@@ -397,7 +341,7 @@ def bin_solids(view, solids):
     return start, items
 
 
-@inline
+@span_helper
 def same_spans(kind, ids, n_a, oa, n_b, ob):
     """Whether the ``n_a`` spans at ``oa`` and the ``n_b`` at ``ob`` of ``kind`` and ``ids`` are of
     the same kinds and ids, in order."""

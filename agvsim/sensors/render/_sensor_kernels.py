@@ -33,9 +33,7 @@ import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros
 
 from agvsim.sensors.render.ray_records import EXPOSE_BLOCK
-from localizer._jit import borrowed
-from localizer._jit import fast_inline as inline
-from localizer._jit import fast_jit as jit
+from agvsim.sensors.render.kernel_jit import frame_kernel, helper, kernel
 
 __all__ = ["EXPOSE_BLOCK", "column_counter", "expose", "expose_columns", "expose_flat", "expose_scratch",
            "nearest_depth", "normal_pair", "pair_bits", "splitmix64", "standard_normals", "store_8x8", "store_columns"]
@@ -58,7 +56,7 @@ _C4, _C6, _C8 = _F(4.166664568298827e-2), _F(-1.388731625493765e-3), _F(2.443315
 _BIT62 = np.uint64(1 << 62)
 
 
-@inline
+@helper
 def splitmix64(x):
     """SplitMix64's output function of the counter state ``x`` (uint64)."""
     x = (x ^ (x >> np.uint64(30))) * _M1
@@ -70,7 +68,7 @@ _HI32 = np.uint64(0xFFFFFFFF00000000)
 _HALF_CELL = np.uint64(1 << 31)
 
 
-@inline
+@helper
 def pair_bits(bits):
     """``(bits_r, bits_a)`` of one pair from one 64-bit output: the high 32 bits as the radius's
     uniform (the middle of its cell: bit 31 set, never 0) and the low 32 as the angle's (bits
@@ -78,7 +76,7 @@ def pair_bits(bits):
     return (bits & _HI32) | _HALF_CELL, bits << np.uint64(32)
 
 
-@inline
+@helper
 def _minus_two_log_u(bits):
     """``-2 ln u`` (float32) of the uniform ``u = bits / 2**64`` (``bits`` uint64, not 0)."""
     x = bits
@@ -95,7 +93,7 @@ def _minus_two_log_u(bits):
     return (_MINUS4 * s) * p + (_F(e) + (_ZERO if big else _ONE)) * _TWO_LN2
 
 
-@inline
+@helper
 def _direction(bits):
     """``(cos a, sin a)`` (float32) of an angle ``a`` uniform on the circle, from ``bits`` (uint64):
     bit 63 flips the cosine, bit 62 swaps the two (the four quarter turns), bits 39..60 the angle
@@ -113,7 +111,7 @@ def _direction(bits):
     return (sn if swap else cs), (cs if swap else sn)
 
 
-@inline
+@helper
 def normal_pair(bits_r, bits_a):
     """Two independent standard normals (float32) from 128 random bits (uint64 each; Box-Muller)."""
     r = math.sqrt(_minus_two_log_u(bits_r))
@@ -121,7 +119,7 @@ def normal_pair(bits_r, bits_a):
     return r * c, r * s
 
 
-@jit
+@frame_kernel
 def standard_normals(seed, out):
     """Fill ``out`` (1-D float32) with the normals :func:`expose` adds to a frame of ``out.size``
     pixels with this ``seed`` (int < 2**63), in pixel order, unscaled."""
@@ -141,7 +139,7 @@ def standard_normals(seed, out):
         out[m] = normal_pair(bits_r, bits_a)[0]
 
 
-@inline
+@helper
 def expose_flat(x, o, params, c):
     """:func:`expose` of the pixels ``x`` (1-D float32) into ``o`` (1-D uint8), the noise's counter
     at ``c`` (uint64: pair ``k``'s bits are SplitMix64 of ``c + k GOLDEN``, split by :func:`pair_bits`)."""
@@ -186,7 +184,7 @@ def expose_flat(x, o, params, c):
         o[m] = np.uint8(min(np.int32(max(v, _ZERO)), top))
 
 
-@jit
+@frame_kernel
 def expose(radiance, params, out):
     """Radiance -> 8-bit grey (:func:`agvsim.sensors.render.sensor.expose`'s model): ``g = scale
     radiance + flare``, plus ``z sqrt(max(g, 0) / electrons_per_grey + read_noise**2) noise_scale``
@@ -207,14 +205,14 @@ _LO16 = np.uint64(0x0000FFFF0000FFFF)
 _LO32 = np.uint64(0x00000000FFFFFFFF)
 
 
-@inline
+@helper
 def _swap(a, b, mask, shift):
     """One stage of a byte-matrix transpose: the units of ``shift`` bits of the words ``a`` and ``b``
     (uint64) interleaved: ``a``'s even units with ``b``'s even ones, ``a``'s odd with ``b``'s odd."""
     return (a & mask) | ((b & mask) << shift), ((a >> shift) & mask) | (b & ~mask)
 
 
-@inline
+@helper
 def store_8x8(src, ib, stride, dst, d0, d_stride):
     """Words ``src[ib + q stride]`` (``q`` = 0..7; byte ``r`` of word ``q``: row ``r``, column ``q``)
     transposed into ``dst[d0 + r d_stride]`` (byte ``q`` of word ``r``), in three stages of swaps."""
@@ -245,7 +243,7 @@ def expose_scratch(height: int) -> np.ndarray:
     return np.empty((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8)
 
 
-@jit
+@frame_kernel
 def expose_columns(radiance_t, params, out, cols):
     """:func:`expose` of a column-major frame into a row-major 8-bit frame.
 
@@ -264,9 +262,6 @@ def expose_columns(radiance_t, params, out, cols):
     ``cols``, then stored 8 rows at a time when ``W`` is a multiple of 8: an 8 x 8 block of bytes
     transposed in 64-bit words (:func:`store_8x8`), one store per row of the block.
     """
-    radiance_t = borrowed(radiance_t)
-    out = borrowed(out)
-    cols = borrowed(cols)
     w, h = radiance_t.shape
     for j0 in range(0, w, EXPOSE_BLOCK):
         nb = min(EXPOSE_BLOCK, w - j0)
@@ -275,14 +270,14 @@ def expose_columns(radiance_t, params, out, cols):
         store_columns(cols, j0, nb, out)
 
 
-@inline
+@helper
 def column_counter(params, h, j):
     """The noise's counter (uint64) at column ``j`` of a column-major frame ``h`` rows high
     (:func:`expose_columns`): past the ``h - h // 2`` pairs of each column before it."""
     return np.uint64(params.seed) + _GOLDEN + _GOLDEN * np.uint64(h - h // 2) * np.uint64(j)
 
 
-@inline
+@helper
 def store_columns(cols, j0, nb, out):
     """Columns ``j0 .. j0 + nb - 1`` of the row-major 8-bit frame ``out`` ``(H, W)`` (C-contiguous)
     from their exposed bytes ``cols[q, :H]`` (:func:`expose_columns`'s ``cols``): 8 rows at a time,
@@ -309,7 +304,7 @@ def store_columns(cols, j0, nb, out):
                 out[i, j0 + q] = cols[q, i]
 
 
-@jit
+@kernel
 def nearest_depth(depth):
     """The smallest positive finite depth of ``depth`` (m, C-contiguous float32 of any shape; 1e3 if
     none). Positive floats order as their bit patterns do: an integer minimum, which vectorises."""

@@ -19,9 +19,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from localizer._jit import inline, jit
+from agvsim.sensors.render.kernel_jit import exact_helper
+from localizer._jit import jit
 
-__all__ = ["COLUMNS", "TruthParams", "blank_table", "frame_table", "image_geometry", "occlusion_verdicts",
+__all__ = ["COLUMNS", "CameraRotation", "TargetPoints", "TruthParams", "blank_table", "frame_table", "image_geometry", "occlusion_verdicts",
            "target_poses"]
 
 #: the table's columns, in order (module docstring)
@@ -47,6 +48,24 @@ class TruthParams(NamedTuple):
     min_bar_px: float  # px: the envelope's narrowest bar
     min_rows: float  # rows: the envelope's shortest bar
     max_alpha: float  # rad: the envelope's largest |alpha|
+
+
+class TargetPoints(NamedTuple):
+    """The map's targets as the truth kernels read them (:class:`~agvsim.sensors.render.truth.TruthGeometry`)."""
+
+    frame: np.ndarray  # (n, 3, 3) float64, rows across, down, centre (m, map frame)
+    outer_uv: np.ndarray  # (n, 4, 3) float64, rows [u, v, 1] of the printed face's corners (m)
+    image_uv: np.ndarray  # (n, 16, 3) float64, the points projected for the image geometry
+    grid_uv: np.ndarray  # (n, k, 3) float64, the occlusion grid's face points
+
+
+class CameraRotation(NamedTuple):
+    """Where the camera is and how it is turned (:func:`target_poses`'s ``position .. jittered``)."""
+
+    position: np.ndarray  # (3,) float64, m, the lens in the map frame
+    rot: np.ndarray  # (3, 3) float64, camera-to-map rotation of the actual camera
+    level: np.ndarray  # (3, 3) float64, the same of the level camera
+    jittered: bool  # False when the two are the same
 
 
 def blank_table(n: int) -> np.ndarray:
@@ -99,7 +118,7 @@ def target_poses(frame, position, rot, level, jittered, outer_uv, near, act, tab
         table[t, _IN_FRONT] = 1.0 if zmin > near else 0.0
 
 
-@inline
+@exact_helper
 def _store_geometry(px, i, t, width, height, table):
     """Image geometry of one target from its 16 projected points ``px[i]`` into ``table[t]``:
     corners, bbox, ``in_view`` (the bbox inside the image), narrowest bar, shortest bar."""
@@ -146,7 +165,7 @@ def image_geometry(px, rows, width, height, table):
         _store_geometry(px, i, rows[i], width, height, table)
 
 
-@jit
+@exact_helper
 def _pinhole_geometry(image_uv, act, params, table, px):
     """:func:`image_geometry` of the targets in front of the lens through the pinhole
     ``x = fx X / Z + cx``, ``y = fy Y / Z + cy`` (``px``: ``(1, 16, 2)`` scratch)."""
@@ -164,14 +183,15 @@ def _pinhole_geometry(image_uv, act, params, table, px):
 
 
 @jit
-def occlusion_verdicts(grid_uv, act, params, depth, has_depth, table):
+def occlusion_verdicts(grid_uv, act, params, depth_t, has_depth, table):
     """The depth-buffer test of the targets in view, then ``visible`` and ``in_envelope`` of all.
 
     Args:
         grid_uv: ``(n, k, 3)`` rows ``[u, v, 1]`` of the occlusion grid's face points (m).
         act: ``(n, 3, 3)`` from :func:`target_poses`. params: :class:`TruthParams`.
-        depth: ``(H s, W s)`` depth buffer (m along the optical axis, 0 = nothing; ``s`` =
-            ``params.supersample``), read when ``has_depth``.
+        depth_t: ``(W s, H s)`` float32, C-contiguous: the transpose of the ``(H s, W s)`` depth
+            buffer (m along the optical axis, 0 = nothing; ``s`` = ``params.supersample``), read
+            when ``has_depth`` (one layout for every backend: one compiled specialization).
         table: ``(n, N_COLUMNS)``: ``occluded``, ``visible``, ``in_envelope`` written.
 
     A point (pinhole, undistorted: the buffer is) samples the buffer at ``floor((px + 0.5) s)``
@@ -180,7 +200,7 @@ def occlusion_verdicts(grid_uv, act, params, depth, has_depth, table):
     none does.
     """
     s = params.supersample
-    h, w = depth.shape
+    w, h = depth_t.shape
     for t in range(act.shape[0]):
         occ = 0.0
         if has_depth and table[t, _IN_VIEW] != 0.0:
@@ -195,7 +215,7 @@ def occlusion_verdicts(grid_uv, act, params, depth, has_depth, table):
                 row = np.int64(math.floor((y / z * params.fy + params.cy + 0.5) * s))
                 if 0 <= col < w and 0 <= row < h:
                     n_ok += 1
-                    zb = depth[row, col]
+                    zb = depth_t[col, row]
                     if zb >= 0 and zb < z - (0.004 + 0.0005 * z):
                         n_hidden += 1
             occ = n_hidden / n_ok if n_ok > 0 else 1.0
@@ -208,11 +228,12 @@ def occlusion_verdicts(grid_uv, act, params, depth, has_depth, table):
 
 
 @jit
-def frame_table(frame, position, rot, level, jittered, outer_uv, image_uv, grid_uv, params, depth, has_depth,
-                act, table, px):
+def frame_table(targets, pose, params, depth_t, has_depth, act, table, px):
     """The whole table of an undistorted frame: :func:`target_poses`, the pinhole image
-    geometry of the targets in front, :func:`occlusion_verdicts` (arguments as theirs; ``px``:
+    geometry of the targets in front, :func:`occlusion_verdicts` (``targets``:
+    :class:`TargetPoints`, ``pose``: :class:`CameraRotation`, the rest as theirs; ``px``:
     ``(1, 16, 2)`` float64 scratch)."""
-    target_poses(frame, position, rot, level, jittered, outer_uv, params.near, act, table)
-    _pinhole_geometry(image_uv, act, params, table, px)
-    occlusion_verdicts(grid_uv, act, params, depth, has_depth, table)
+    target_poses(targets.frame, pose.position, pose.rot, pose.level, pose.jittered, targets.outer_uv, params.near,
+                 act, table)
+    _pinhole_geometry(targets.image_uv, act, params, table, px)
+    occlusion_verdicts(targets.grid_uv, act, params, depth_t, has_depth, table)

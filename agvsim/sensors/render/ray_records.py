@@ -2,7 +2,10 @@
 
 The scene is flattened once per map into the array tuples below (:class:`Solids`,
 :class:`Faces`, :class:`Decals`, :class:`Textures`, :class:`Light`, :class:`Floor`) by
-:mod:`agvsim.sensors.render.raycast`; each frame adds a :class:`View`. Units: metres,
+:mod:`agvsim.sensors.render.raycast` and held together as one :class:`Scene`; each frame
+adds a :class:`View`, and the frame kernels hand the scalar records :class:`SubColumn`,
+:class:`FaceSpan`, :class:`TexelColumns` and :class:`SpanLight` to their helpers (scalars
+only: no array is copied per column or span). Units: metres,
 pixels, radians; map frame x east, y north, z up. The sensor stages take a
 :class:`SensorParams` (:mod:`agvsim.sensors.render._sensor_kernels`) and a
 :class:`MotionBlurParams` (:mod:`agvsim.sensors.render._motion_blur_kernels`) per frame and a
@@ -15,8 +18,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["BlurScratch", "Decals", "EXPOSE_BLOCK", "Faces", "Floor", "FrameScratch", "Light", "MotionBlurParams", "SensorParams",
-           "Solids", "SpanKind", "Textures", "View"]
+__all__ = ["BlurScratch", "Decals", "EXPOSE_BLOCK", "FaceSpan", "Faces", "Floor", "FrameScratch", "Hits", "Light", "MotionBlurParams",
+           "Scene", "SensorParams", "Solids", "SpanBuffer", "SpanKind", "SpanLight", "SubColumn", "TexelColumns", "Textures", "View"]
 
 
 class SpanKind(IntEnum):
@@ -150,6 +153,76 @@ class Light(NamedTuple):
     face_res: float  # m between samples
 
 
+class Scene(NamedTuple):
+    """A map's scene as the frame kernels read it: the records above, made once per map
+    (:class:`agvsim.sensors.render.raycast.RaycastBackend`)."""
+
+    solids: Solids
+    faces: Faces
+    decals: Decals
+    tex: Textures
+    light: Light
+    floor: Floor
+
+
+class SubColumn(NamedTuple):
+    """The (sub-)column ``x0 .. x1`` of image column ``j`` whose spans are being shaded (a column
+    the same spans cross whole, or one of its ``View.subcolumns`` parts)."""
+
+    j: int  # image column
+    x0: float  # px, left edge
+    x1: float  # px, right edge
+    weight: float  # its share of the column's radiance (1, or 1 / subcolumns)
+    write_depth: bool  # its spans write the column's depth (it holds the column's centre)
+    skip_lo: int  # rows a floor span covers whole that the floor pass drew: taken from the pass,
+    skip_hi: int  #   neither shaded nor given a depth here (none if skip_hi < skip_lo)
+
+
+class FaceSpan(NamedTuple):
+    """One face span of a (sub-)column as the face kernels read it
+    (:func:`agvsim.sensors.render._raycast_face.shade_face`); scalars only."""
+
+    face: int  # face index (:class:`Faces`)
+    z: float  # m, depth along the optical axis
+    y0: float  # px, the span's rows y0 .. y1 (pixel i covers i - 0.5 .. i + 0.5)
+    y1: float
+    s_a: float  # m along the face where the sub-column's edge rays meet it (clamped to the face)
+    s_b: float
+    hc: float  # m, lens height
+    cy: float  # px
+    zpy: float  # m of height per image row at depth z
+    gain: float  # sub-column weight x the lighting level at the span
+    u_c: float  # texture u at the sub-column's centre
+    u_half: float  # texture units from the centre to each of the two subsample columns
+    va: float  # texture v of image row y: va + vb y
+    vb: float
+    d_lo: float  # m, the heights that decals crossing the footprint reach (d_hi < d_lo: none)
+    d_hi: float
+
+
+class TexelColumns(NamedTuple):
+    """A face span's filtered texture: its one or two mip levels' texel columns in
+    ``FrameScratch.texels``, each already weighted by its trilinear weight (scalars only)."""
+
+    b0: int  # offset of the first level's column
+    n0: int  # its texels
+    t0a: float  # its texel coordinate of image row y: t0a + t0b y
+    t0b: float
+    b1: int  # the second level's, likewise (n1 == 0: none; its samples would be +0.0)
+    n1: int
+    t1a: float
+    t1b: float
+
+
+class SpanLight(NamedTuple):
+    """A face span's irradiance: samples at rows ``y0 + m step`` in ``FrameScratch.irr[:n]``, linear between."""
+
+    y0: float  # px
+    step: float  # px
+    inv_step: float  # 1 / px
+    n: int  # samples (>= 2)
+
+
 class SensorParams(NamedTuple):
     """Exposure and noise of one frame (:class:`agvsim.sensors.render.sensor.SensorModel`)."""
 
@@ -207,21 +280,39 @@ EXPOSE_BLOCK = 8
 FLOOR_PAD = 16
 
 
+class Hits(NamedTuple):
+    """The prisms one ray crosses, in order of entry depth (``K`` at most)."""
+
+    t_in: np.ndarray  # (K,) float64, m: entry depth
+    t_out: np.ndarray  # (K,) float64, m: exit depth
+    solid: np.ndarray  # (K,) int64
+    edge: np.ndarray  # (K,) int64, the edge it enters by
+
+
+class SpanBuffer(NamedTuple):
+    """Spans of rays (``S`` per ray), front to back: rows ``y0 .. y1`` (px), kind
+    (:class:`SpanKind`), id (face; solid or -1 for flat; -2 background), value (depth Z of a
+    face, m; height of a flat span, m)."""
+
+    y0: np.ndarray  # (N,) float64, px
+    y1: np.ndarray  # (N,) float64, px
+    kind: np.ndarray  # (N,) int64, SpanKind
+    id: np.ndarray  # (N,) int64
+    val: np.ndarray  # (N,) float64, m
+
+    @classmethod
+    def of(cls, n: int) -> SpanBuffer:
+        return cls(np.zeros(n), np.zeros(n), np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n))
+
+
 class FrameScratch(NamedTuple):
     """Work arrays of the raycaster's level frame for one image size (``W`` x ``H``), allocated
     once (:meth:`of`) and overwritten by every frame
     (:func:`agvsim.sensors.render._raycast_frame.render_view`): one backend draws one frame at
     a time. ``S`` spans per ray, ``K`` hits per ray."""
 
-    hit_in: np.ndarray  # (K,) float64, m: a ray's prisms, entry depth
-    hit_out: np.ndarray  # (K,) float64, m: exit depth
-    hit_solid: np.ndarray  # (K,) int64
-    hit_edge: np.ndarray  # (K,) int64
-    e_y0: np.ndarray  # ((W + 1) S,) float64, px: the spans of column edge ray r at r S ..
-    e_y1: np.ndarray  # ((W + 1) S,) float64, px
-    e_kind: np.ndarray  # ((W + 1) S,) int64, SpanKind
-    e_id: np.ndarray  # ((W + 1) S,) int64
-    e_val: np.ndarray  # ((W + 1) S,) float64, m
+    hits: Hits  # (K,) each: a ray's prisms
+    edges: SpanBuffer  # ((W + 1) S,) each: the spans of column edge ray r at r S ..
     e_n: np.ndarray  # (W + 1,) int64, spans of each edge ray
     drawn: np.ndarray  # (W, H) uint8, 1 where the floor pass drew the pixel
     row_lo: np.ndarray  # (H,) int64, first column of each row the floor pass draws
@@ -230,32 +321,25 @@ class FrameScratch(NamedTuple):
     floor_depth: np.ndarray  # (H,) float32, m: the floor's depth per row
     floor_idx: np.ndarray  # (4 W,) uint64: the floor pass's texel and raster indices of a row
     floor_wts: np.ndarray  # (4 W,) float32: and their weights
-    my0: np.ndarray  # (S,) float64, px: a column's (or sub-column's) spans
-    my1: np.ndarray  # (S,) float64, px
-    mkind: np.ndarray  # (S,) int64
-    mid: np.ndarray  # (S,) int64
-    mval: np.ndarray  # (S,) float64
+    spans: SpanBuffer  # (S,) each: the spans of the column (or sub-column) being shaded
     acc: np.ndarray  # (H,) float64: a column's radiance
-    shade: np.ndarray  # (face scratch size for H,) float64: a face span's irradiance and decal cover
-    texels: np.ndarray  # (face texel size for H,) float32: a face span's two texel columns
-    rows: np.ndarray  # (2 (H + 8),) float32: a face span's filtered texture per row, per mip level
+    irr: np.ndarray  # (H + 2,) float64: a face span's irradiance samples (SpanLight)
+    cover: np.ndarray  # (2 H,) float64: a face span's decal coverage per row (printed mean x share, share)
+    texels: np.ndarray  # (2 (4 H + 8),) float32: a face span's two texel columns (TexelColumns)
     column: np.ndarray  # (H,) float32: a column's radiance, when the frame is exposed as it is drawn
     exposed: np.ndarray  # (EXPOSE_BLOCK, H rounded up to 8) uint8: a block of exposed columns, likewise
 
     @classmethod
-    def of(cls, width: int, height: int, spans: int, hits: int, shade: tuple[int, int]) -> FrameScratch:
-        """Scratch for ``width`` x ``height`` frames (``shade``: the face kernel's scratch lengths,
-        float64 and float32)."""
-        if width < 1 or height < 1 or spans < 4 or hits < 1 or min(shade) < 1:
-            raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}, {shade}")
-        f8, i8, n = np.float64, np.int64, (width + 1) * spans
-        return cls(np.zeros(hits), np.zeros(hits), np.zeros(hits, i8), np.zeros(hits, i8),
-                   np.zeros(n), np.zeros(n), np.zeros(n, i8), np.zeros(n, i8), np.zeros(n), np.zeros(width + 1, i8),
+    def of(cls, width: int, height: int, spans: int, hits: int) -> FrameScratch:
+        """Scratch for ``width`` x ``height`` frames, ``spans`` spans and ``hits`` prisms per ray."""
+        if width < 1 or height < 1 or spans < 4 or hits < 1:
+            raise ValueError(f"FrameScratch needs positive sizes; got {width}, {height}, {spans}, {hits}")
+        f8, i8 = np.float64, np.int64
+        return cls(Hits(np.zeros(hits), np.zeros(hits), np.zeros(hits, i8), np.zeros(hits, i8)),
+                   SpanBuffer.of((width + 1) * spans), np.zeros(width + 1, i8),
                    np.zeros((width, height), np.uint8), np.zeros(height, i8), np.zeros(height, i8),
                    np.zeros((height, width + FLOOR_PAD), np.float32), np.zeros(height, np.float32),
-                   np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32),
-                   np.zeros(spans), np.zeros(spans), np.zeros(spans, i8), np.zeros(spans, i8), np.zeros(spans),
-                   np.zeros(height), np.zeros(shade[0], f8),
-                   np.zeros(shade[1], np.float32), np.zeros(2 * (height + 8), np.float32),
-                   np.zeros(height, np.float32),
+                   np.zeros(4 * width, np.uint64), np.zeros(4 * width, np.float32), SpanBuffer.of(spans),
+                   np.zeros(height), np.zeros(height + 2, f8), np.zeros(2 * height, f8),
+                   np.zeros(2 * (4 * height + 8), np.float32), np.zeros(height, np.float32),
                    np.zeros((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8))

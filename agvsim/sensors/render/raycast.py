@@ -19,8 +19,8 @@ import numpy as np
 
 from agvsim.sensors.render.lighting import Illumination
 from agvsim.sensors.render.mount import CameraPose
-from agvsim.sensors.render.ray_records import (Decals, Faces, Floor, FrameScratch, Light, SensorParams, Solids, Textures,
-                                               View)
+from agvsim.sensors.render.ray_records import (Decals, Faces, Floor, FrameScratch, Light, Scene, SensorParams, Solids,
+                                               Textures, View)
 from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
 from localizer.camera import Camera
@@ -69,6 +69,8 @@ class RaycastBackend:
         self.textures = _summed_area_tables(scene, keys, {d.texture for d in scene.decals}, floor_key)
         self.solids = self.solids._replace(top_albedo=_top_albedo(scene, keys))
         self.light = _light(illumination, self.faces)
+        #: what the frame kernels read of the map (one record: the kernels' one argument for it)
+        self.scene = Scene(self.solids, self.faces, self.decals, self.textures, self.light, self.floor)
         self._work: FrameScratch | None = None  # the kernel's work arrays, for the last frame size
 
     # --------------------------------------------------------------- frame
@@ -91,6 +93,7 @@ class RaycastBackend:
         order, e.g. from :func:`frame_buffers`, reused frame after frame: pages already mapped).
         ``np.ascontiguousarray`` gives a row-major copy where one is needed."""
         from agvsim.sensors.render._raycast_frame import render_view
+        from agvsim.sensors.render._raycast_kernels import bin_solids
 
         radiance, depth = out if out is not None else frame_buffers(view.width, view.height)
         shape = (view.height, view.width)
@@ -101,8 +104,8 @@ class RaycastBackend:
                     if isinstance(a, np.ndarray) else type(a).__name__
                 raise ValueError(f"draw_level(out=) needs two writeable {shape} float32 arrays in column-major "
                                  f"(Fortran) order, as frame_buffers() makes; got {got}")
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, radiance.T,
-                    depth.T, self._scratch(view.width, view.height), _NO_SENSOR, _NO_IMAGE)
+        render_view(view, self.scene, bin_solids(view, self.solids), radiance.T, depth.T,
+                    self._scratch(view.width, view.height), _NO_SENSOR, _NO_IMAGE)
         return radiance, depth
 
     def draw_exposed(self, view: View, params: SensorParams, image: np.ndarray, depth: np.ndarray) -> None:
@@ -111,6 +114,7 @@ class RaycastBackend:
         :meth:`draw_level`'s radiance with ``params`` (bit for bit), and ``depth`` (as
         :meth:`draw_level`'s ``out``) with the depth; the radiance is never stored."""
         from agvsim.sensors.render._raycast_frame import render_view
+        from agvsim.sensors.render._raycast_kernels import bin_solids
 
         shape = (view.height, view.width)
         if (not isinstance(image, np.ndarray) or image.shape != shape or image.dtype != np.uint8
@@ -119,16 +123,15 @@ class RaycastBackend:
         if (not isinstance(depth, np.ndarray) or depth.shape != shape or depth.dtype != np.float32
                 or not depth.T.flags.c_contiguous or not depth.flags.writeable):
             raise ValueError(f"draw_exposed(depth=) needs a writeable {shape} float32 array in column-major order")
-        render_view(view, self.solids, self.faces, self.decals, self.textures, self.light, self.floor, depth.T,
-                    depth.T, self._scratch(view.width, view.height), params, image)
+        render_view(view, self.scene, bin_solids(view, self.solids), depth.T, depth.T,
+                    self._scratch(view.width, view.height), params, image)
 
     def _scratch(self, width: int, height: int) -> FrameScratch:
         """The kernel's work arrays for ``width`` x ``height`` frames (made at the first such frame)."""
         if self._work is None or self._work.floor_depth.shape[0] != height or self._work.e_n.shape[0] != width + 1:
-            from agvsim.sensors.render._raycast_face import scratch_size
             from agvsim.sensors.render._raycast_kernels import MAX_HITS, MAX_SPANS
 
-            self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS, scratch_size(height))
+            self._work = FrameScratch.of(width, height, MAX_SPANS, MAX_HITS)
         return self._work
 
     def draw(self, camera: Camera, cam_pose: CameraPose, level: float | None,

@@ -281,7 +281,21 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
     corners = np.array([[fx0, fy1, 0.0], [fx1, fy1, 0.0], [fx1, fy0, 0.0], [fx0, fy0, 0.0]])
     bld.quad("surface:floor", corners, corners[:, :2] / np.array([tw, th]))
 
-    # walls
+    _add_walls(world_map, rng, textures, bld, solids)
+    _add_obstacles(world_map, rng, textures, bld, solids)
+    distractors = _add_decals(world_map, rng, textures, bld, decals)
+
+    parts = bld.parts()
+    return SceneDescription(
+        name=world_map.name, parts=parts, textures=MappingProxyType(textures), distractors=tuple(distractors),
+        bounds=(xmin, ymin, xmax, ymax), n_triangles=int(sum(len(p.indices) for p in parts)),
+        solids=tuple(solids), decals=tuple(decals), floor=(fx0, fy0, fx1, fy1))
+
+
+def _add_walls(world_map, rng: np.random.Generator, textures: dict, bld: _Builder, solids: list) -> None:
+    """Each wall's pieces: its two faces, ends and top as meshes (2 mm inside the map's surface,
+    ``WALL_INSET``), and the same box at full thickness as a raycaster :class:`Solid`; textures
+    drawn from ``rng`` in wall order."""
     for wall in world_map.walls:
         surf = wall.surface
         key = f"surface:{surf}"
@@ -325,7 +339,10 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
                                 (plain, (0.0, 0.0)), (rm - r, 0.0, rm - r, 0.0)))
             s0 += L
 
-    # obstacles
+
+
+def _add_obstacles(world_map, rng: np.random.Generator, textures: dict, bld: _Builder, solids: list) -> None:
+    """Each obstacle's sides and top as meshes and as convex :class:`Solid` s (textures from ``rng``)."""
     for ob in world_map.obstacles:
         kind = ob.kind if ob.kind in tx.OBSTACLE_TILE else "other"
         key = f"obstacle:{kind}"
@@ -347,6 +364,11 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
         bld.polygon(key, top, np.full((len(poly), 2), 0.02), tris)
         solids.extend(_convex_solids(poly, looks, float(ob.height), (key, (0.02, 0.02)), tris))
 
+
+
+def _add_decals(world_map, rng: np.random.Generator, textures: dict, bld: _Builder, decals: list) -> list[Distractor]:
+    """The targets (one texture per spec and polarity) and the distractors placed from ``rng``, as
+    meshes and :class:`Decal` s; returns the distractors."""
     # targets: one texture per (spec, polarity)
     for t in world_map.targets:
         spec = t.spec
@@ -375,11 +397,7 @@ def build_scene(world_map, seed: int | None = None) -> SceneDescription:
         decals.append(Decal(key, tuple(map(float, c - u_dir * w / 2)), tuple(map(float, c + u_dir * w / 2)),
                             (d.centre[2] - h / 2, d.centre[2] + h / 2), d.normal))
 
-    parts = bld.parts()
-    return SceneDescription(
-        name=world_map.name, parts=parts, textures=MappingProxyType(textures), distractors=tuple(distractors),
-        bounds=(xmin, ymin, xmax, ymax), n_triangles=int(sum(len(p.indices) for p in parts)),
-        solids=tuple(solids), decals=tuple(decals), floor=(fx0, fy0, fx1, fy1))
+    return distractors
 
 
 def _is_convex(poly: np.ndarray) -> bool:

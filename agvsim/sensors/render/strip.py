@@ -135,6 +135,35 @@ def _mark_decoys(tile: np.ndarray, decoys, scale: float) -> None:
         draw_text(tile, "decoy", (x, y), CAPTION_PX, color=_DECOY, halo_color=(0, 0, 0))
 
 
+def _matches(obs, vis) -> list[dict]:
+    """Each observation with the visible target nearest in bearing (within 0.03 rad) and its errors."""
+    found = []
+    for o in obs:
+        match = min(vis, key=lambda t: abs(t.beta - o.beta), default=None)
+        if match is not None and abs(match.beta - o.beta) > 0.03:
+            match = None
+        found.append({"distance": o.distance, "alpha": o.alpha, "beta": o.beta, "polarity": o.polarity,
+                      "target": match.id if match else None,
+                      "distance_error": (o.distance - match.distance) if match else None,
+                      "alpha_error": (o.alpha - match.alpha) if match else None})
+    return found
+
+
+def _tile_lines(k: int, pose, n_visible: int, found: list[dict], decoys) -> list[tuple]:
+    """The caption of tile ``k``: ``(text, colour)`` lines: the pose, targets in view and found, decoys."""
+    wrong = sum(f["target"] is None for f in found)
+    right = len(found) - wrong
+    lines = [(f"#{k + 1}  x={pose[0]:.1f} m  y={pose[1]:.1f} m  θ={math.degrees(pose[2]):.0f}°", _TEXT),
+             (f"targets: {n_visible} in view, {right} found" + (f", {wrong} false" if wrong else ""),
+              _OK if right == n_visible and not wrong else _WARN)]
+    if decoys:
+        names = sorted({_DECOY_NAMES.get(kind, kind.replace("_", " ")) for kind, _ in decoys})
+        lines.append((f"decoy{'s' if len(decoys) > 1 else ''}: " + ", ".join(names), _DECOY))
+    else:
+        lines.append(("no decoy in view", _DIM))
+    return lines
+
+
 def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng: np.random.Generator | None = None,
                       renderer=None, mount=None, conditions=None, columns: int = 4, scale: float = 0.5) -> dict:
     """Render frames at the true ``poses``, run :func:`localizer.detect_targets` on each,
@@ -179,29 +208,12 @@ def save_camera_strip(world_map, poses, path, camera: Camera | None = None, rng:
         vis = [t for t in truth.targets if t.visible]
         decoys = decoys_in_view(distractors, renderer.map, renderer.camera,
                                 CameraPose.from_vehicle(renderer.mount, pose))
-        found = []
-        for o in obs:
-            match = min(vis, key=lambda t: abs(t.beta - o.beta), default=None)
-            if match is not None and abs(match.beta - o.beta) > 0.03:
-                match = None
-            found.append({"distance": o.distance, "alpha": o.alpha, "beta": o.beta, "polarity": o.polarity,
-                          "target": match.id if match else None,
-                          "distance_error": (o.distance - match.distance) if match else None,
-                          "alpha_error": (o.alpha - match.alpha) if match else None})
+        found = _matches(obs, vis)
         frames.append({"pose": [float(v) for v in pose], "visible": [t.id for t in vis],
                        "decoys": [kind for kind, _ in decoys], "found": found})
         tile = annotate(grey, obs, scale=scale)
         _mark_decoys(tile, decoys, scale)
-        wrong = sum(f["target"] is None for f in found)
-        lines = [(f"#{k + 1}  x={pose[0]:.1f} m  y={pose[1]:.1f} m  θ={math.degrees(pose[2]):.0f}°", _TEXT),
-                 (f"targets: {len(vis)} in view, {len(obs) - wrong} found" + (f", {wrong} false" if wrong else ""),
-                  _OK if len(obs) - wrong == len(vis) and not wrong else _WARN)]
-        if decoys:
-            names = sorted({_DECOY_NAMES.get(kind, kind.replace("_", " ")) for kind, _ in decoys})
-            lines.append((f"decoy{'s' if len(decoys) > 1 else ''}: " + ", ".join(names), _DECOY))
-        else:
-            lines.append(("no decoy in view", _DIM))
-        tiles.append(np.vstack([tile, _caption(tile.shape[1], lines)]))
+        tiles.append(np.vstack([tile, _caption(tile.shape[1], _tile_lines(k, pose, len(vis), found, decoys))]))
     if not tiles:
         raise ValueError("poses is empty")
     columns = max(1, min(columns, len(tiles)))

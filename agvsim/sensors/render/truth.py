@@ -33,7 +33,7 @@ import numpy as np
 from localizer.camera import Camera
 from localizer.geometry import TargetPose
 from agvsim.sensors.render._truth_kernels import COLUMNS as TRUTH_COLUMNS
-from agvsim.sensors.render._truth_kernels import (TruthParams, blank_table, frame_table, image_geometry,
+from agvsim.sensors.render._truth_kernels import (CameraRotation, TargetPoints, TruthParams, blank_table, frame_table, image_geometry,
                                                   occlusion_verdicts, target_poses)
 from agvsim.sensors.render.mount import CameraPose, level_rotation
 
@@ -298,19 +298,20 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
                             MAX_ALPHA)
     position = np.asarray(cam_pose.position, dtype=np.float64)
     has_depth = depth is not None
-    depth = depth if has_depth else _NO_DEPTH
+    depth_t = _NO_DEPTH if not has_depth else depth.T if depth.T.flags.c_contiguous and depth.dtype == np.float32 \
+        else np.ascontiguousarray(depth.T, np.float32)  # (one layout: one compiled kernel)
     table = blank_table(n)
     act = np.empty((n, 3, 3))
     if n and not (distorted and camera.dist):
-        frame_table(g.frame, position, rot, level, jittered, g._outer, g._image, g._grid, params, depth, has_depth,
-                       act, table, np.empty((1, IMAGE.stop, 2)))
+        frame_table(TargetPoints(g.frame, g._outer, g._image, g._grid), CameraRotation(position, rot, level, jittered),
+                    params, depth_t, has_depth, act, table, np.empty((1, IMAGE.stop, 2)))
     elif n:  # the image geometry through the lens distortion (NumPy), the rest compiled
         target_poses(g.frame, position, rot, level, jittered, g._outer, NEAR, act, table)
         f = (table[:, _COL["in_front"]] != 0.0).nonzero()[0]
         if len(f):
             px = camera.project(g._image[f] @ act[f])  # (m, 16, 2) px
             image_geometry(np.ascontiguousarray(px, dtype=np.float64), f, camera.width, camera.height, table)
-        occlusion_verdicts(g._grid, act, params, depth, has_depth, table)
+        occlusion_verdicts(g._grid, act, params, depth_t, has_depth, table)
     kept = table[:, 0] > 1e-9  # a centre at the lens has no pose
     if kept.all():
         ids, polarities = tuple(g._ids), tuple(g._polarities)
