@@ -8,6 +8,8 @@ BIN    := $(VENV)/bin
 # bytecode when it first imports it, not pip for every module of every package (half the install)
 BASE   := $(VENV)/.installed
 TESTS  := $(VENV)/.installed-test
+# (in a variable: a comma written inside $(call ...) would split its arguments)
+TEST_EXTRAS := .[test,ray,rllib]
 # run a phase: $(call phase,what it does,command)
 phase = @start=$$(date +%s); $(2) || exit $$?; echo "make: $(1) ($$(( $$(date +%s) - start )) s)"
 
@@ -22,7 +24,7 @@ $(BASE): $(BIN)/python pyproject.toml
 # torch pinned first: 2.13.0 is the CPU build on disk, so the rllib extra's `torch>=2.1` is met
 # (else pip fetches a multi-GB CUDA build)
 $(TESTS): $(BASE)
-	$(call phase,installed the test extras (pytest; Ray + RLlib + torch for the cluster tests),$(BIN)/python -m pip install --quiet --no-compile torch==2.13.0 && $(BIN)/python -m pip install --quiet --no-compile -e '.[test,ray,rllib]' && touch $(TESTS))
+	$(call phase,installed the test extras (pytest; Ray + RLlib + torch for the cluster tests),$(BIN)/python -m pip install --quiet --no-compile torch==2.13.0 && $(BIN)/python -m pip install --quiet --no-compile -e '$(TEST_EXTRAS)' && touch $(TESTS))
 
 # numba compiles the kernels for this machine on their first call: done here, once, on every
 # core (a second when they are already cached; after an edit it compiles what changed)
