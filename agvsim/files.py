@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
-__all__ = ["TMP_PREFIX", "atomic_write", "write_json"]
+__all__ = ["TMP_PREFIX", "atomic_write", "read_record", "write_json"]
 
 #: the prefix of the temporary names
 TMP_PREFIX = ".tmp-"
@@ -42,3 +42,30 @@ def write_json(path: str | os.PathLike, obj: Any, indent: int = 2) -> Path:
     with atomic_write(path) as tmp:
         tmp.write_text(json.dumps(obj, indent=indent), encoding="utf-8")
     return path
+
+
+def read_record(path: str | os.PathLike, flag: str, what: str) -> dict[str, Any] | None:
+    """A run folder's record (``run.json``, ``sweep.json``): the JSON object at ``path``, or None
+    when there is no such file.
+
+    Raises ``ValueError`` in one line when the file is there but is not a JSON object (cut off,
+    not text, unreadable, another type): ``"<flag> '<folder>': its <name> cannot be read (<reason>);
+    expected <what>"``, so that the command refuses the folder without touching what it holds.
+    """
+    path = Path(path)
+    if not path.is_file():
+        return None
+    where = f"{flag} {str(path.parent)!r}: its {path.name}"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        reason = f"cut off or not JSON: {exc}"
+    except UnicodeDecodeError:
+        reason = "not text"
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+    else:
+        if isinstance(data, dict):
+            return data
+        reason = f"it holds a {type(data).__name__}, not a JSON object"
+    raise ValueError(f"{where} cannot be read ({reason}); expected {what}")

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from agvsim.files import TMP_PREFIX as _TMP_PREFIX, atomic_write, write_json
+from agvsim.files import TMP_PREFIX as _TMP_PREFIX, atomic_write, read_record, write_json
 
 __all__ = ["RunFolder", "atomic_write"]
 
@@ -50,23 +50,13 @@ class RunFolder:
         self.seeds_dir.mkdir(parents=True, exist_ok=True)
         for stale in self.out.rglob(_TMP_PREFIX + "*"):  # an interrupted write's leftovers
             stale.unlink(missing_ok=True)
-        record = self.out / "run.json"
-        if record.is_file() and not restart:
-            try:
-                before = json.loads(record.read_text(encoding="utf-8"))
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"--out {str(self.out)!r}: its run.json cannot be read ({_reason(exc)}); expected "
-                                 "the settings of an earlier run: use --restart to replace that run, or another "
-                                 "--out") from None
-            if not isinstance(before, dict):
-                raise ValueError(f"--out {str(self.out)!r}: its run.json holds a {type(before).__name__}, expected "
-                                 "the settings of an earlier run (a JSON object): use --restart to replace that "
-                                 "run, or another --out")
-            if before != self.settings:
-                differ = sorted(k for k in set(before or {}) | set(self.settings)
-                                if (before or {}).get(k) != self.settings.get(k))
-                raise ValueError(f"--out {str(self.out)!r} holds a run with other settings ({', '.join(differ)}); "
-                                 "use --restart to replace it, or another --out")
+        before = None if restart else read_record(
+            self.out / "run.json", "--out", "the settings of an earlier run (a JSON object): use --restart to "
+            "replace that run, or another --out")
+        if before is not None and before != self.settings:
+            differ = sorted(k for k in set(before) | set(self.settings) if before.get(k) != self.settings.get(k))
+            raise ValueError(f"--out {str(self.out)!r} holds a run with other settings ({', '.join(differ)}); "
+                             "use --restart to replace it, or another --out")
         if restart:
             for old in list(self.seeds_dir.glob("seed_*")):
                 old.unlink()
@@ -104,15 +94,3 @@ class RunFolder:
     def write_json(self, name: str, obj: Any) -> Path:
         """``obj`` as JSON in ``out/name``, atomically."""
         return write_json(self.out / name, obj)
-
-
-def _reason(exc: Exception) -> str:
-    """A short reason a JSON file could not be read: JSON's own message (its line and column), or
-    the OS error."""
-    if isinstance(exc, json.JSONDecodeError):
-        return f"cut off or not JSON: {exc}"
-    if isinstance(exc, UnicodeDecodeError):
-        return "not text"
-    if isinstance(exc, OSError):
-        return exc.strerror or str(exc)
-    return str(exc)

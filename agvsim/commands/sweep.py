@@ -80,7 +80,7 @@ def _report(args) -> int:
 
     if args.folder is None:
         raise ValueError("agvsim sweep report DIR: DIR missing (the results folder of a sweep)")
-    record = SweepFolder.read_record(args.folder)
+    record = SweepFolder.read_record(args.folder, "report")
     if record is None:
         raise ValueError(f"{args.folder}: no sweep.json there; expected the --out folder of an agvsim sweep")
     rows = read_rows(args.folder)
@@ -157,7 +157,7 @@ def _run(args, where: dict) -> int:
         raise
     bar.finish()
     wall = time.perf_counter() - started
-    files = write_report(out, read_rows(out), SweepFolder.read_record(out), args.format, plots=not args.no_plots)
+    files = write_report(out, read_rows(out), SweepFolder.read_record(out, "--out"), args.format, plots=not args.no_plots)
     result = {"points": len(spec.points), "seeds": len(spec.seeds), "runs": n_runs,
               "finished": len(where["finished"]) - len(done), "failed": len(failed), "skipped": len(done),
               "results": files["results"], "summary": files["summary"], "plots": files["plots"],

@@ -21,7 +21,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from agvsim.files import atomic_write, write_json
+from agvsim.files import atomic_write, read_record, write_json
 
 __all__ = ["SweepFolder", "read_rows", "software_version"]
 
@@ -62,12 +62,10 @@ class SweepFolder:
         if self.out.exists() and not self.out.is_dir():
             raise ValueError(f"--out {str(self.out)!r}: a file; expected a folder")
         identity = json.loads(json.dumps(spec.identity()))
-        record = self.out / self.RECORD
-        if record.is_file() and not restart:
-            before = self.read_record(self.out)
-            if before is None or before.get("identity") != identity:
-                what = "an unreadable sweep.json" if before is None else "a sweep of another spec"
-                raise ValueError(f"--out {str(self.out)!r} holds {what}; use --restart to replace it, or another --out")
+        before = None if restart else self.read_record(self.out, "--out")
+        if before is not None and before.get("identity") != identity:
+            raise ValueError(f"--out {str(self.out)!r} holds a sweep of another spec; use --restart to replace it, "
+                             "or another --out")
         if restart and self.out.is_dir():
             for name in ("runs", "plots"):
                 shutil.rmtree(self.out / name, ignore_errors=True)
@@ -84,12 +82,12 @@ class SweepFolder:
                                       "software": software_version()})
 
     @staticmethod
-    def read_record(out: str | Path) -> dict | None:
-        """``out/sweep.json`` as data (None if missing or unreadable)."""
-        try:
-            return json.loads((Path(out) / SweepFolder.RECORD).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return None
+    def read_record(out: str | Path, flag: str) -> dict | None:
+        """``out/sweep.json`` as data, None if there is none; ``ValueError`` naming ``flag`` (the
+        command's argument that named ``out``) when it is there but cannot be read
+        (:func:`agvsim.files.read_record`)."""
+        hint = ": use --restart to replace that sweep, or another --out" if flag == "--out" else ""
+        return read_record(Path(out) / SweepFolder.RECORD, flag, f"the record of an earlier sweep (a JSON object){hint}")
 
     def finished(self) -> dict[str, dict]:
         """The runs finished here: ``{key: row}`` of the readable rows with status ``ok``."""

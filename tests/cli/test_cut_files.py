@@ -148,3 +148,20 @@ def test_a_run_folder_whose_record_is_cut_off(tmp_path, capfd, share):
     with pytest.raises(json.JSONDecodeError):
         json.loads(record.read_text())  # (left as it was for the user to look at)
     shutil.rmtree(out)
+
+
+@pytest.mark.parametrize("share", SHARES)
+def test_a_sweep_folder_whose_record_is_cut_off(tmp_path, capfd, share):
+    spec = ROOT / "examples" / "sweep_small.yaml"
+    out = tmp_path / "sweep"
+    (out / "runs").mkdir(parents=True)
+    whole = json.dumps({"identity": {"base": {}, "points": [], "seeds": [0]}, "spec": {}, "spec_file": str(spec)})
+    record = out / "sweep.json"
+    record.write_text(whole[:int(share * len(whole))])
+    rc, _, err = _run(["sweep", str(spec), "--out", str(out), "--no-progress"], capfd)
+    _check(rc, err, "sweep.json", out / "results.parquet", out / "spec.yaml")
+    assert str(out) in err and "cut off" in err and "--restart" in err, err
+    rc, _, err = _run(["sweep", "report", str(out)], capfd)
+    _check(rc, err, "sweep.json", out / "results.parquet")
+    assert "cut off" in err, err
+    assert record.read_text() == whole[:int(share * len(whole))]  # (left for the user to look at)
