@@ -9,7 +9,7 @@ BIN    := $(VENV)/bin
 BASE   := $(VENV)/.installed
 TESTS  := $(VENV)/.installed-test
 # (in a variable: a comma written inside $(call ...) would split its arguments)
-TEST_EXTRAS := .[test,ray,rllib]
+TEST_EXTRAS := .[test,ray,rllib,record,rosbag]
 # run a phase: $(call phase,what it does,command)
 phase = @start=$$(date +%s); $(2) || exit $$?; echo "make: $(1) ($$(( $$(date +%s) - start )) s)"
 

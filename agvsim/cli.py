@@ -19,7 +19,7 @@ import traceback
 
 #: Subcommand modules under agvsim.commands, in the order --help lists them.
 COMMAND_MODULES: tuple[str, ...] = ("demo", "map", "localize", "calibrate", "reproduce", "render", "bench", "drift", "sweep",
-                                     "target", "plan", "warmup")
+                                     "target", "plan", "warmup", "track")
 
 #: The exit status of a user's mistake (argparse's own).
 USAGE_ERROR = 2

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
+from agvsim.commands.capture import add_capture_flags, captures, check_capture_flags
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log
 from agvsim.sensors.registry import SOURCES
 from agvsim.vehicle.encoders import PRESETS
@@ -48,6 +49,7 @@ def register(sub) -> None:
     add_mount_flag(p)
     p.add_argument("--frames", type=number(0, integer=True), default=8,
                    help="camera frames in the strip along the route, 0 for none (default: %(default)s)")
+    add_capture_flags(p, exports=True)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -84,9 +86,15 @@ def format_table(table: list[dict[str, float]]) -> str:
 def run(args) -> int:
     from agvsim.world import load_map
 
+    check_capture_flags(args)
+    if args.no_vision and (args.record or args.export_log or args.export_bag):
+        raise ValueError("--record, --export-log and --export-bag keep the camera's run: not with --no-vision")
     world_map = load_map(args.map)
     drive = _drive(args, world_map)
     files, strip = _pictures(args, world_map, drive)
+    for flag in ("record", "export_log", "export_bag"):
+        if getattr(args, flag) is not None:
+            files[flag] = str(getattr(args, flag))
     result = _summary(args, world_map, drive, files, strip)
     if args.json:
         emit_json(result)
@@ -135,7 +143,9 @@ def _drive(args, world_map) -> _Drive:
         mission = MissionConfig(route=args.route, laps=args.laps, sim=config, vision_config=vision)
         options = {"backend": args.backend} if args.observations == "rendered" else {}
         source = make_source(args.observations, world_map, vision, **options)
-        run_log = run_mission(world_map, source, rng, mission, progress=bar.to)
+        start = world_map.route(args.route)[0].pose
+        with captures(args, world_map, start, f"seed-{args.seed}") as observer:
+            run_log = run_mission(world_map, source, rng, mission, progress=bar.to, observer=observer)
         estimate_error = np.linalg.norm(run_log.estimate[:, :2] - run_log.true_pose[:, :2], axis=1)
     wall = time.perf_counter() - started
     if len(run_log.time) == 0:

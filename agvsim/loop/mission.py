@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from agvsim.loop.closed_loop import ClosedLoop, LoopConfig
+from agvsim.loop.closed_loop import ClosedLoop, LoopConfig, LoopStep
 from agvsim.loop.log import Arrival, MissionLog, frame_record
 from agvsim.loop.record import MissionRecorder, RecordLimits
 from agvsim.loop.modes import STEER_ON
@@ -87,7 +87,8 @@ def _follower(world_map, config: MissionConfig) -> PurePursuit:
 
 
 def run_mission(world_map, source, rng: np.random.Generator, config: MissionConfig = MissionConfig(),
-                progress: Callable[[float], None] | None = None) -> MissionLog:
+                progress: Callable[[float], None] | None = None,
+                observer: Callable[[ClosedLoop, LoopStep], None] | None = None) -> MissionLog:
     """Drive ``config.route`` on ``world_map`` from its first station.
 
     Args:
@@ -96,6 +97,8 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
         rng: the run's generator (split into odometry and camera streams).
         config: the run's settings.
         progress: called with the route progress (m) each control step.
+        observer: called with the loop and its :class:`~agvsim.loop.closed_loop.LoopStep` after
+            each control step (a recording, an exported log: it reads, it does not steer).
 
     Returns:
         the run's :class:`~agvsim.loop.log.MissionLog`.
@@ -134,6 +137,8 @@ def run_mission(world_map, source, rng: np.random.Generator, config: MissionConf
             record.frame(frame_record(f))
         record.step(sim.time, sim.distance, sim.true_pose, sim.odometry_pose, ekf.pose(), ekf.covariance(),
                     (v, w), ekf.lost, (time.perf_counter() - t_step) * 1e3)
+        if observer is not None:
+            observer(loop, step)
         if progress is not None:
             progress(pursuit.progress)
     t_sim, t_obs, t_filter = (loop.timings[k] for k in ("sim", "observe", "filter"))

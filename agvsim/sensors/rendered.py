@@ -57,6 +57,8 @@ class RenderedSource:
         self._renderer = None
         self.last_frame: np.ndarray | None = None
         self.last_truth = None
+        #: what the localizer found in :attr:`last_frame` (:class:`localizer.TargetObservation`)
+        self.last_detections: tuple = ()
         self.timing = {"render": 0.0, "localize": 0.0}  # wall seconds in renderer.render, detect_targets
 
     @staticmethod
@@ -113,6 +115,7 @@ class RenderedSource:
         t0 = time.perf_counter()
         detections = detect_targets(image, self.camera, spec, method=self.vision.detector)
         self.timing["localize"] += time.perf_counter() - t0
+        self.last_detections = tuple(detections)
         for o in detections:
             out.append(SimObservation(o.distance, o.beta, o.alpha, np.asarray(o.covariance), o.polarity,
                                       match_truth(o, visible, self.map)))

@@ -1,0 +1,240 @@
+"""A run as a Rerun recording: the floor, the paths, the covariance, the camera and the filter
+on one ``sim_time`` timeline (seconds), to look at in the Rerun viewer (``rerun run.rrd``).
+
+:class:`RunRecording` writes one recording (one ``recording_id``) to one ``.rrd`` file. The
+entity paths are :data:`ENTITY_PATHS` (stable: scripts and blueprints may rely on them):
+
+========================== =============================================================
+``world/map/walls``        static line strips of the walls' centrelines (m)
+``world/map/targets``      static points at the targets' face centres, labelled with id and
+                           polarity; ``world/map/targets/facing``: arrows along their normals
+``world/map/stations``     static points at the stations, labelled with their ids
+``world/truth``            the true pose: an arrow (x, y, heading), every recorded step
+``world/dead_reckoning``   the odometry's pose, likewise
+``world/estimate``         the filter's estimate, likewise
+``world/<pose>/trail/<k>`` the path, one piece every :data:`TRAIL_PERIOD` seconds (points
+                           :data:`TRAIL_SPACING` apart): at any time the pieces logged so far
+``world/estimate/covariance`` the 2σ ellipse of the estimate's position
+``camera/image``           the camera frame, JPEG-compressed
+``camera/detections``      each target found: its outline in the frame (px) and a label with
+                           d (m), β and α (degrees) and their σ
+``filter/status``          the filter's status (tracking, relocalizing, lost) as a text log
+``metrics/position_error`` the estimate's position error (m; with the truth only)
+``metrics/position_sigma`` the estimate's largest position σ (m)
+``metrics/nis``            each fused observation's NIS
+``metrics/innovation``     each fused frame's accepted observations' count
+========================== =============================================================
+
+Poses are logged in the floor's frame (x east, y north, metres; heading CCW from +x). The
+2-D view's y axis points up when opened with :func:`blueprint` (sent with every recording).
+"""
+from __future__ import annotations
+
+import math
+import os
+from typing import Iterable, Sequence
+
+import numpy as np
+
+__all__ = ["ENTITY_PATHS", "TIMELINE", "TRAIL_PERIOD", "TRAIL_SPACING", "RunRecording", "detection_label", "detection_outline",
+           "ellipse_points"]
+
+#: the timeline every entity is logged on (seconds of simulated or logged time)
+TIMELINE = "sim_time"
+#: s, the time each piece of a trail (``world/<pose>/trail/<k>``) covers
+TRAIL_PERIOD = 5.0
+#: m, the spacing of a trail's points
+TRAIL_SPACING = 0.05
+#: the entity paths of a recording, and what each holds (module docstring)
+ENTITY_PATHS: dict[str, str] = {
+    "world/map/walls": "walls' centrelines (static)",
+    "world/map/targets": "targets' face centres, labelled id and polarity (static)",
+    "world/map/stations": "stations (static)",
+    "world/truth": "true pose (arrow)",
+    "world/dead_reckoning": "dead-reckoned pose (arrow)",
+    "world/estimate": "filter's estimate (arrow)",
+    "world/<pose>/trail/<k>": "each pose's path, piece by piece",
+    "world/estimate/covariance": "2-sigma ellipse of the estimate's position",
+    "camera/image": "camera frame (JPEG)",
+    "camera/detections": "targets found: outline and d, beta, alpha, sigma",
+    "filter/status": "filter status (text log)",
+    "metrics/position_error": "estimate's position error (m)",
+    "metrics/position_sigma": "estimate's largest position sigma (m)",
+    "metrics/nis": "NIS of each fused observation",
+    "metrics/innovation": "observations accepted per fused frame",
+}
+#: the pose entities, with their colours (RGB)
+POSES = {"truth": (40, 40, 40), "dead_reckoning": (214, 39, 40), "estimate": (31, 119, 180)}
+#: m, the length of a pose's arrow
+ARROW = 0.4
+#: JPEG quality of ``camera/image``
+JPEG_QUALITY = 85
+
+
+def ellipse_points(mean_xy, cov_xy, k: float = 2.0, n: int = 48) -> np.ndarray:
+    """``(n + 1, 2)`` closed outline of the ``k``-σ ellipse of a 2-D Gaussian (m)."""
+    vals, vecs = np.linalg.eigh(np.asarray(cov_xy, dtype=float))
+    radii = k * np.sqrt(np.clip(vals, 0.0, None))
+    t = np.linspace(0.0, 2.0 * math.pi, n + 1)
+    circle = np.stack([np.cos(t), np.sin(t)], axis=1) * radii
+    return np.asarray(mean_xy, dtype=float)[:2] + circle @ vecs.T
+
+
+def detection_outline(measurements) -> np.ndarray:
+    """``(5, 2)`` closed outline (px) of a target found in a frame, from its
+    :class:`localizer.observation.ImageMeasurements`: the outer bar edges from the bar tops to
+    the bar bottoms."""
+    m = measurements
+    x0, x1 = m.outer_edges
+    return np.array([[x0, m.top_y[0]], [x1, m.top_y[1]], [x1, m.bottom_y[1]], [x0, m.bottom_y[0]],
+                     [x0, m.top_y[0]]], dtype=float)
+
+
+def detection_label(obs) -> str:
+    """``"d 3.214±0.004 m  β 4.1±0.1°  α -12.0±0.6°"`` of an observation (its covariance's σ)."""
+    sd = np.sqrt(np.clip(np.diag(np.asarray(obs.covariance, dtype=float)), 0.0, None))
+    return (f"d {obs.distance:.3f}±{sd[0]:.3f} m  β {math.degrees(obs.beta):.1f}±{math.degrees(sd[1]):.1f}°  "
+            f"α {math.degrees(obs.alpha):.1f}±{math.degrees(sd[2]):.1f}°")
+
+
+def blueprint():
+    """The viewer's layout: the floor (2-D, y up) beside the camera, the metrics below."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(rrb.Vertical(
+        rrb.Horizontal(rrb.Spatial2DView(origin="world", name="floor"),
+                       rrb.Spatial2DView(origin="camera", name="camera")),
+        rrb.Horizontal(rrb.TimeSeriesView(origin="metrics", name="metrics"),
+                       rrb.TextLogView(origin="filter", name="filter")),
+        row_shares=[3, 1]))
+
+
+class RunRecording:
+    """One run's recording, written to ``path`` as it is made.
+
+    Args:
+        path: the ``.rrd`` file (written; its folder is made).
+        recording_id: the recording's id (e.g. ``"seed-3"``); the application id is ``"agvsim"``.
+        world_map: the map whose walls, targets and stations are logged static (None: no map).
+        every: log every ``every``-th camera frame (1: all of them); the poses and metrics of
+            every step whatever it is.
+
+    Use as a context manager, or call :meth:`close`.
+    """
+
+    def __init__(self, path: str | os.PathLike, recording_id: str, world_map=None, every: int = 1) -> None:
+        import rerun as rr
+
+        from localizer.numeric import check_number
+
+        self.every = int(check_number("record every", every, low=1, integer=True))
+        self._rr = rr
+        self.path = os.fspath(path)
+        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
+        self.stream = rr.RecordingStream("agvsim", recording_id=recording_id)
+        self.stream.save(self.path, default_blueprint=blueprint())
+        self._frames = 0
+        self._trail_due = TRAIL_PERIOD
+        self._pieces = 0
+        self._trails: dict[str, list] = {name: [] for name in POSES}
+        if world_map is not None:
+            self.map(world_map)
+
+    # -- static -------------------------------------------------------------------------------
+    def map(self, world_map) -> None:
+        """The map's walls, targets (and their facing) and stations, static."""
+        rr, log = self._rr, self.stream.log
+        log("world/map/walls", rr.LineStrips2D([np.asarray(w.points, dtype=float) for w in world_map.walls],
+                                               colors=(120, 120, 120)), static=True)
+        targets = world_map.targets
+        if targets:
+            xy = np.array([t.position for t in targets], dtype=float)
+            log("world/map/targets", rr.Points2D(xy, labels=[f"{t.id} ({t.polarity})" for t in targets],
+                                                 colors=[(0, 0, 0) if t.polarity == "positive" else (200, 120, 0)
+                                                         for t in targets], radii=0.08), static=True)
+            log("world/map/targets/facing", rr.Arrows2D(origins=xy, vectors=0.5 * np.array(
+                [t.normal for t in targets], dtype=float)), static=True)
+        if world_map.stations:
+            log("world/map/stations", rr.Points2D([s.pose[:2] for s in world_map.stations],
+                                                  labels=[s.id for s in world_map.stations], radii=0.06,
+                                                  colors=(44, 160, 44)), static=True)
+
+    # -- per step -----------------------------------------------------------------------------
+    def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
+        """The poses (``{"truth"|"dead_reckoning"|"estimate": (x m, y m, θ rad)}``, any of them) at
+        ``t`` (s), the estimate's 2σ ellipse from ``covariance`` ((3, 3), m²...), the position
+        error and σ, and ``status`` when it changed."""
+        rr, log = self._rr, self.stream.log
+        self.stream.set_time(TIMELINE, duration=float(t))
+        for name, pose in poses.items():
+            x, y, th = (float(v) for v in pose)
+            log(f"world/{name}", rr.Arrows2D(origins=[[x, y]], vectors=[[ARROW * math.cos(th), ARROW * math.sin(th)]],
+                                            colors=POSES[name]))
+            trail = self._trails[name]
+            if not trail or math.hypot(x - trail[-1][0], y - trail[-1][1]) >= TRAIL_SPACING:
+                trail.append((x, y))
+        estimate = poses.get("estimate")
+        if estimate is not None and covariance is not None:
+            cov = np.asarray(covariance, dtype=float)
+            log("world/estimate/covariance", rr.LineStrips2D([ellipse_points(estimate, cov[:2, :2])],
+                                                             colors=POSES["estimate"]))
+            log("metrics/position_sigma", rr.Scalars(float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))))
+            if "truth" in poses:
+                err = math.hypot(estimate[0] - poses["truth"][0], estimate[1] - poses["truth"][1])
+                log("metrics/position_error", rr.Scalars(float(err)))
+        if status is not None:
+            log("filter/status", rr.TextLog(status, level="WARN" if status != "tracking" else "INFO"))
+        if t >= self._trail_due:
+            self._trail_due = t + TRAIL_PERIOD
+            self._trail_pieces()
+
+    def _trail_pieces(self) -> None:
+        """Each trail's points since the last piece, as the next piece (its last point kept as the
+        next piece's first, so that the pieces join)."""
+        rr = self._rr
+        for name, trail in self._trails.items():
+            if len(trail) > 1:
+                self.stream.log(f"world/{name}/trail/{self._pieces:05d}", rr.LineStrips2D(
+                    [np.asarray(trail, dtype=float)], colors=POSES[name], radii=0.02))
+                del trail[:-1]
+        self._pieces += 1
+
+    def frame(self, t: float, image: np.ndarray | None, detections: Iterable = ()) -> None:
+        """A camera frame captured at ``t`` (s): ``image`` ((H, W) or (H, W, 3) uint8; None: the
+        detections only) and what was found in it (:class:`localizer.TargetObservation`, whose
+        ``measurements`` give the outline; observations without it get the label only)."""
+        self._frames += 1
+        if (self._frames - 1) % self.every:
+            return
+        rr, log = self._rr, self.stream.log
+        self.stream.set_time(TIMELINE, duration=float(t))
+        if image is not None:
+            log("camera/image", rr.Image(np.ascontiguousarray(image)).compress(jpeg_quality=JPEG_QUALITY))
+        detections = list(detections)
+        outlines = [detection_outline(d.measurements) for d in detections if getattr(d, "measurements", None)]
+        labels = [detection_label(d) for d in detections]
+        if len(outlines) == len(detections):
+            log("camera/detections", rr.LineStrips2D(outlines, labels=labels, colors=(255, 200, 0)))
+        else:
+            log("camera/detections", rr.TextLog("; ".join(labels) or "no target"))
+
+    def fused(self, t: float, nis: Sequence[float], accepted: int) -> None:
+        """A frame captured at ``t`` (s) fused: its observations' NIS and how many were accepted."""
+        rr, log = self._rr, self.stream.log
+        self.stream.set_time(TIMELINE, duration=float(t))
+        for value in nis:
+            log("metrics/nis", rr.Scalars(float(value)))
+        log("metrics/innovation", rr.Scalars(float(accepted)))
+
+    def close(self) -> None:
+        """Write the last trails and flush the file."""
+        self._trail_pieces()
+        self.stream.flush()
+        self.stream.disconnect()
+
+    def __enter__(self) -> "RunRecording":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
