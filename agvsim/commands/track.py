@@ -40,6 +40,8 @@ def register(sub) -> None:
                         "filter localizes from the targets it sees)")
     p.add_argument("--image-topic", default="/camera/image_raw", help="bag: the camera topic (default: %(default)s)")
     p.add_argument("--odometry-topic", default="/odom", help="bag: the odometry topic (default: %(default)s)")
+    p.add_argument("--truth-topic", default="/ground_truth",
+                   help="bag: the true pose's topic, if it has one (default: %(default)s)")
     p.add_argument("--record", type=Path, default=None, metavar="FILE.rrd", help="also write a Rerun recording")
     p.add_argument("--no-plots", action="store_true", help="no pictures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -57,7 +59,7 @@ def _read(args):
         check_extra("rosbags", "a ROS 2 bag")
         from agvsim.replay.bag import read_bag
 
-        return read_bag(path, args.image_topic, args.odometry_topic)
+        return read_bag(path, args.image_topic, args.odometry_topic, args.truth_topic)
     raise ValueError(f"LOG {str(path)!r}: neither a log folder (frames.csv, odometry.csv) nor a ROS 2 bag "
                      "(.mcap, or a folder with metadata.yaml)")
 
@@ -77,6 +79,7 @@ def _setup(args, drive):
             raise ValueError(f"--{flag} {str(files[flag])!r}: no such file" + (
                 "" if given is not None else f" (the default beside LOG; name the {flag} file with --{flag})"))
     world_map = load_map(args.map)
+    camera, vehicle = Camera.from_opencv_yaml(files["camera"]), load_vehicle(files["vehicle"])
     start = None
     if args.start is not None:
         start = check_pose_on_map(world_map, args.start, "--start")
@@ -86,7 +89,7 @@ def _setup(args, drive):
             f"{math.degrees(start[2]):.1f}°)")
     else:
         log("agvsim track: no --start and no truth in the log: the filter starts lost and localizes from the targets")
-    return TrackSetup(world_map, Camera.from_opencv_yaml(files["camera"]), load_vehicle(files["vehicle"]), start)
+    return TrackSetup(world_map, camera, vehicle, start)
 
 
 def write_estimate(path: Path, result) -> Path:

@@ -80,8 +80,8 @@ def load_vehicle(path: str | os.PathLike) -> VehicleFile:
         raise ValueError(f"{path}: not a complete YAML file{where}; expected a vehicle file "
                          f"({', '.join(VEHICLE_KEYS)})") from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a vehicle file, a mapping of {', '.join(VEHICLE_KEYS)}; got "
-                         f"{type(data).__name__}")
+        raise ValueError(f"{path}: cut off or not a vehicle file; expected a mapping of {', '.join(VEHICLE_KEYS)}, "
+                         f"got {type(data).__name__}")
     unknown = sorted(set(data) - set(VEHICLE_KEYS))
     if unknown:
         raise ValueError(f"{path}: unknown field {unknown[0]!r}; expected {', '.join(VEHICLE_KEYS)}")
