@@ -28,14 +28,14 @@ def add_capture_flags(parser, exports: bool = False) -> None:
     """``--record``, ``--record-every`` and (``exports``) ``--export-log``, ``--export-bag``."""
     parser.add_argument("--record", type=Path, default=None, metavar="FILE.rrd",
                         help="write a Rerun recording of the run (open it with `rerun FILE.rrd`; "
-                             "the 'record' extra)")
+                             "the 'record' extra); agvsim drift: one per seed, FILE-seedNNN.rrd (default: none)")
     parser.add_argument("--record-every", type=number(1, integer=True), default=1, metavar="N",
                         help="--record: every N-th camera frame (default: %(default)s, all)")
     if exports:
         parser.add_argument("--export-log", type=Path, default=None, metavar="DIR",
-                            help="write the drive as a log folder (frames, odometry, truth) for agvsim track")
+                            help="write the drive as a log folder (frames, odometry, truth) for agvsim track (default: none)")
         parser.add_argument("--export-bag", type=Path, default=None, metavar="FILE.mcap",
-                            help="write the drive as a ROS 2 bag (MCAP) for agvsim track (the 'rosbag' extra)")
+                            help="write the drive as a ROS 2 bag (MCAP) for agvsim track (the 'rosbag' extra; default: none)")
 
 
 def check_capture_flags(args) -> None:

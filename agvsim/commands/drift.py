@@ -26,6 +26,7 @@ from types import SimpleNamespace
 from agvsim.commands._args import add_backend_flag, add_mount_flag, check_route, number
 from localizer.numeric import check_number
 from agvsim.commands._output import DistanceBar, add_json_flag, emit_json, log, plural
+from agvsim.commands.capture import add_capture_flags, check_capture_flags
 from agvsim.commands.run_folder import RunFolder, atomic_write
 from agvsim.commands.workers import MetreReporter, run_units
 from agvsim.sensors.registry import SOURCES
@@ -66,6 +67,7 @@ def register(sub) -> None:
                         "command resumes, skipping the seeds already finished there)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_mount_flag(p)
+    add_capture_flags(p)
     add_json_flag(p)
     p.set_defaults(func=run)
 
@@ -87,9 +89,25 @@ def _job(args: dict):
     from agvsim.loop.drive import drive_seed
 
     progress = MetreReporter(args.get("queue"))
-    run_log = drive_seed(settings_of(args), args["seed"], progress.to)
+    record = args.get("record")
+    if record is None:
+        run_log = drive_seed(settings_of(args), args["seed"], progress.to)
+    else:
+        from agvsim.record import LoopRecorder, RunRecording
+
+        settings = settings_of(args)
+        world_map = settings.world()
+        with RunRecording(seed_recording(record, args["seed"]), f"seed-{args['seed']}", world_map,
+                          args.get("record_every", 1)) as rec:
+            run_log = drive_seed(settings, args["seed"], progress.to, world_map, observer=LoopRecorder(rec))
     progress.finish(args["distance"])
     return args["seed"], run_log
+
+
+def seed_recording(record: str | Path, seed: int) -> Path:
+    """The recording of one seed of ``--record FILE.rrd``: ``FILE-seedNNN.rrd`` beside it."""
+    record = Path(record)
+    return record.with_name(f"{record.stem}-seed{seed:03d}{record.suffix}")
 
 
 #: m of driving in all (distance x seeds) from which a run first prints an estimate of its time
@@ -246,6 +264,7 @@ def _checked_map(args):
 def _run(args, where: dict) -> int:
     from agvsim.analysis.evaluate import floors_met, pooled, run_metrics, summarize
 
+    check_capture_flags(args)
     world_map = _checked_map(args)
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     workers = args.workers or (os.cpu_count() or 1)
@@ -285,7 +304,8 @@ def _run(args, where: dict) -> int:
         where["saved"].add(seed)
 
     try:
-        run_units(_job, [{**base, "seed": s} for s in pending], workers, finished, bar.add)
+        extra = {} if args.record is None else {"record": str(args.record), "record_every": args.record_every}
+        run_units(_job, [{**base, **extra, "seed": s} for s in pending], workers, finished, bar.add)
     except KeyboardInterrupt:
         bar.close()  # (the bar's line ended before run() says what is saved)
         raise

@@ -42,7 +42,7 @@ def register(sub) -> None:
     p.add_argument("--odometry-topic", default="/odom", help="bag: the odometry topic (default: %(default)s)")
     p.add_argument("--truth-topic", default="/ground_truth",
                    help="bag: the true pose's topic, if it has one (default: %(default)s)")
-    p.add_argument("--record", type=Path, default=None, metavar="FILE.rrd", help="also write a Rerun recording")
+    p.add_argument("--record", type=Path, default=None, metavar="FILE.rrd", help="also write a Rerun recording (default: none)")
     p.add_argument("--no-plots", action="store_true", help="no pictures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_json_flag(p)

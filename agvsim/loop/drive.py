@@ -101,7 +101,7 @@ class DriveSettings:
 
 
 def drive_seed(settings: DriveSettings, seed: int, progress: Callable[[float], None] | None = None,
-               world_map=None):
+               world_map=None, observer: Callable | None = None):
     """Drive ``settings`` with ``seed`` (every random draw from ``numpy.random.default_rng(seed)``).
 
     Args:
@@ -109,6 +109,7 @@ def drive_seed(settings: DriveSettings, seed: int, progress: Callable[[float], N
         seed: the run's seed.
         progress: called with the metres driven so far, now and then (None: not called).
         world_map: ``settings.world()`` when the caller has built it already.
+        observer: passed to :func:`~agvsim.loop.mission.run_mission` (called after each step).
     Returns:
         The run's :class:`~agvsim.loop.log.MissionLog`.
     """
@@ -130,4 +131,4 @@ def drive_seed(settings: DriveSettings, seed: int, progress: Callable[[float], N
         if settings.observations == "rendered":
             kw["backend"] = settings.backend
         source = make_source(settings.observations, world_map, config.vision_config, **kw)
-    return run_mission(world_map, source, np.random.default_rng(seed), config, progress)
+    return run_mission(world_map, source, np.random.default_rng(seed), config, progress, observer)

@@ -1,7 +1,8 @@
 """A run as a Rerun recording: the floor, the paths, the covariance, the camera and the filter
 on one ``sim_time`` timeline (seconds), to look at in the Rerun viewer (``rerun run.rrd``).
 
-:class:`RunRecording` writes one recording (one ``recording_id``) to one ``.rrd`` file. The
+:class:`RunRecording` writes one recording (one ``recording_id``) to one ``.rrd`` file (from a
+thread of its own: a run waits for none of it but the end). The
 entity paths are :data:`ENTITY_PATHS` (stable: scripts and blueprints may rely on them):
 
 ========================== =============================================================
@@ -12,7 +13,7 @@ entity paths are :data:`ENTITY_PATHS` (stable: scripts and blueprints may rely o
 ``world/truth``            the true pose: an arrow (x, y, heading), every recorded step
 ``world/dead_reckoning``   the odometry's pose, likewise
 ``world/estimate``         the filter's estimate, likewise
-``world/<pose>/trail/<k>`` the path, one piece every :data:`TRAIL_PERIOD` seconds (points
+``world/<pose>/trail/<k>``  the path, one piece every :data:`TRAIL_PERIOD` seconds (points
                            :data:`TRAIL_SPACING` apart): at any time the pieces logged so far
 ``world/estimate/covariance`` the 2σ ellipse of the estimate's position
 ``camera/image``           the camera frame, JPEG-compressed
@@ -36,7 +37,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["ENTITY_PATHS", "TIMELINE", "TRAIL_PERIOD", "TRAIL_SPACING", "RunRecording", "detection_label", "detection_outline",
+__all__ = ["ENTITY_PATHS", "TIMELINE", "TRAIL_PERIOD", "TRAIL_SPACING", "RecordingWriter", "RunRecording", "detection_label", "detection_outline",
            "ellipse_points"]
 
 #: the timeline every entity is logged on (seconds of simulated or logged time)
@@ -69,6 +70,14 @@ POSES = {"truth": (40, 40, 40), "dead_reckoning": (214, 39, 40), "estimate": (31
 ARROW = 0.4
 #: JPEG quality of ``camera/image``
 JPEG_QUALITY = 85
+#: s, the shortest time between two logs of the estimate's ellipse
+ELLIPSE_PERIOD = 0.25
+#: steps gathered before the per-step values are sent as columns
+BATCH = 1024
+
+
+def _empty_rows() -> dict[str, list]:
+    return {"t": [], "sigma": [], "error": [], **{name: [] for name in POSES}}
 
 
 def ellipse_points(mean_xy, cov_xy, k: float = 2.0, n: int = 48) -> np.ndarray:
@@ -109,8 +118,9 @@ def blueprint():
         row_shares=[3, 1]))
 
 
-class RunRecording:
-    """One run's recording, written to ``path`` as it is made.
+class RecordingWriter:
+    """One run's recording, written to ``path`` as it is made, in the calling thread
+    (:class:`RunRecording` calls it from a thread of its own).
 
     Args:
         path: the ``.rrd`` file (written; its folder is made).
@@ -119,21 +129,21 @@ class RunRecording:
         every: log every ``every``-th camera frame (1: all of them); the poses and metrics of
             every step whatever it is.
 
-    Use as a context manager, or call :meth:`close`.
+    Call :meth:`close` at the end.
     """
 
     def __init__(self, path: str | os.PathLike, recording_id: str, world_map=None, every: int = 1) -> None:
         import rerun as rr
 
-        from localizer.numeric import check_number
-
-        self.every = int(check_number("record every", every, low=1, integer=True))
+        self.every = int(every)
         self._rr = rr
         self.path = os.fspath(path)
         os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
         self.stream = rr.RecordingStream("agvsim", recording_id=recording_id)
         self.stream.save(self.path, default_blueprint=blueprint())
         self._frames = 0
+        self._rows = _empty_rows()
+        self._ellipse_due = 0.0
         self._trail_due = TRAIL_PERIOD
         self._pieces = 0
         self._trails: dict[str, list] = {name: [] for name in POSES}
@@ -162,28 +172,41 @@ class RunRecording:
     # -- per step -----------------------------------------------------------------------------
     def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
         """The poses (``{"truth"|"dead_reckoning"|"estimate": (x m, y m, θ rad)}``, any of them) at
-        ``t`` (s), the estimate's 2σ ellipse from ``covariance`` ((3, 3), m²...), the position
-        error and σ, and ``status`` when it changed."""
-        rr, log = self._rr, self.stream.log
-        self.stream.set_time(TIMELINE, duration=float(t))
-        for name, pose in poses.items():
-            x, y, th = (float(v) for v in pose)
-            log(f"world/{name}", rr.Arrows2D(origins=[[x, y]], vectors=[[ARROW * math.cos(th), ARROW * math.sin(th)]],
-                                            colors=POSES[name]))
-            trail = self._trails[name]
-            if not trail or math.hypot(x - trail[-1][0], y - trail[-1][1]) >= TRAIL_SPACING:
-                trail.append((x, y))
+        ``t`` (s), the estimate's position error and σ from ``covariance`` ((3, 3), m², m·rad,
+        rad²), its 2σ ellipse (at most every :data:`ELLIPSE_PERIOD` s), and ``status`` when it
+        changed. The per-step values are gathered and sent as columns, :data:`BATCH` steps at a
+        time (a log call per value would cost more than the run)."""
+        t = float(t)
+        rows = self._rows
+        rows["t"].append(t)
+        for name in POSES:
+            pose = poses.get(name)
+            rows[name].append((math.nan,) * 3 if pose is None else tuple(float(v) for v in pose))
+            if pose is not None:
+                trail = self._trails[name]
+                x, y = float(pose[0]), float(pose[1])
+                if not trail or math.hypot(x - trail[-1][0], y - trail[-1][1]) >= TRAIL_SPACING:
+                    trail.append((x, y))
         estimate = poses.get("estimate")
+        sigma = err = math.nan
         if estimate is not None and covariance is not None:
-            cov = np.asarray(covariance, dtype=float)
-            log("world/estimate/covariance", rr.LineStrips2D([ellipse_points(estimate, cov[:2, :2])],
-                                                             colors=POSES["estimate"]))
-            log("metrics/position_sigma", rr.Scalars(float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))))
+            cov = np.asarray(covariance, dtype=float)[:2, :2]
+            sigma = math.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]) + math.hypot(0.5 * (cov[0, 0] - cov[1, 1]), cov[0, 1]),
+                                  0.0))
+            if t >= self._ellipse_due:
+                self._ellipse_due = t + ELLIPSE_PERIOD
+                self.stream.set_time(TIMELINE, duration=t)
+                self.stream.log("world/estimate/covariance", self._rr.LineStrips2D(
+                    [ellipse_points(estimate, cov)], colors=POSES["estimate"]))
             if "truth" in poses:
                 err = math.hypot(estimate[0] - poses["truth"][0], estimate[1] - poses["truth"][1])
-                log("metrics/position_error", rr.Scalars(float(err)))
+        rows["sigma"].append(sigma)
+        rows["error"].append(err)
         if status is not None:
-            log("filter/status", rr.TextLog(status, level="WARN" if status != "tracking" else "INFO"))
+            self.stream.set_time(TIMELINE, duration=t)
+            self.stream.log("filter/status", self._rr.TextLog(status, level="WARN" if status != "tracking" else "INFO"))
+        if len(rows["t"]) >= BATCH:
+            self._send_rows()
         if t >= self._trail_due:
             self._trail_due = t + TRAIL_PERIOD
             self._trail_pieces()
@@ -199,6 +222,27 @@ class RunRecording:
                 del trail[:-1]
         self._pieces += 1
 
+    def _send_rows(self) -> None:
+        """The gathered per-step values, as one column per entity."""
+        rr, rows = self._rr, self._rows
+        if not rows["t"]:
+            return
+        for name in POSES:
+            pose = np.asarray(rows[name], dtype=float)
+            keep = np.isfinite(pose[:, 0])
+            if keep.any():
+                p = pose[keep]
+                self.stream.send_columns(f"world/{name}", [rr.TimeColumn(TIMELINE, duration=np.asarray(rows["t"])[keep])],
+                                         rr.Arrows2D.columns(origins=p[:, :2], vectors=ARROW * np.stack(
+                                             [np.cos(p[:, 2]), np.sin(p[:, 2])], axis=1)))
+        for key, path in (("sigma", "metrics/position_sigma"), ("error", "metrics/position_error")):
+            values = np.asarray(rows[key], dtype=float)
+            keep = np.isfinite(values)
+            if keep.any():
+                self.stream.send_columns(path, [rr.TimeColumn(TIMELINE, duration=np.asarray(rows["t"])[keep])],
+                                         rr.Scalars.columns(scalars=values[keep]))
+        self._rows = _empty_rows()
+
     def frame(self, t: float, image: np.ndarray | None, detections: Iterable = ()) -> None:
         """A camera frame captured at ``t`` (s): ``image`` ((H, W) or (H, W, 3) uint8; None: the
         detections only) and what was found in it (:class:`localizer.TargetObservation`, whose
@@ -209,7 +253,11 @@ class RunRecording:
         rr, log = self._rr, self.stream.log
         self.stream.set_time(TIMELINE, duration=float(t))
         if image is not None:
-            log("camera/image", rr.Image(np.ascontiguousarray(image)).compress(jpeg_quality=JPEG_QUALITY))
+            import cv2
+
+            ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            if ok:
+                log("camera/image", rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
         detections = list(detections)
         outlines = [detection_outline(d.measurements) for d in detections if getattr(d, "measurements", None)]
         labels = [detection_label(d) for d in detections]
@@ -228,9 +276,84 @@ class RunRecording:
 
     def close(self) -> None:
         """Write the last trails and flush the file."""
+        self._send_rows()
         self._trail_pieces()
         self.stream.flush()
         self.stream.disconnect()
+
+
+
+class RunRecording:
+    """One run's recording, written to ``path`` by a thread of its own: each call here queues
+    copies of its arguments and returns; the thread makes the :class:`RecordingWriter` calls (the
+    import of Rerun, the JPEG encoding and the logging overlap the run's compiled kernels, which
+    release the GIL). The same methods and arguments as :class:`RecordingWriter`.
+
+    Args:
+        path: the ``.rrd`` file (written; its folder is made).
+        recording_id: the recording's id (e.g. ``"seed-3"``); the application id is ``"agvsim"``.
+        world_map: the map whose walls, targets and stations are logged static (None: no map).
+        every: log every ``every``-th camera frame (1: all of them); the poses and metrics of
+            every step whatever it is.
+
+    Use as a context manager, or call :meth:`close` (which waits for the queue to be written and
+    raises what the thread raised).
+    """
+
+    def __init__(self, path: str | os.PathLike, recording_id: str, world_map=None, every: int = 1) -> None:
+        import queue
+        import threading
+
+        from localizer.numeric import check_number
+
+        self.path = os.fspath(path)
+        every = int(check_number("record every", every, low=1, integer=True))
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._work, args=(path, recording_id, world_map, every),
+                                        name="agvsim-recording", daemon=True)
+        self._thread.start()
+
+    def _work(self, *args) -> None:
+        try:
+            writer = RecordingWriter(*args)
+        except BaseException as exc:  # (raised again by close)
+            self._error = exc
+            writer = None
+        while True:
+            item = self._queue.get()
+            if item is None:
+                break
+            if writer is None or self._error is not None:
+                continue
+            try:
+                getattr(writer, item[0])(*item[1:])
+            except BaseException as exc:
+                self._error = exc
+        if writer is not None:
+            writer.close()
+
+    def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
+        """:meth:`RecordingWriter.poses`, queued."""
+        self._queue.put(("poses", float(t), {k: tuple(float(v) for v in p) for k, p in poses.items()},
+                         None if covariance is None else np.array(covariance, dtype=float), status))
+
+    def frame(self, t: float, image: np.ndarray | None, detections: Iterable = ()) -> None:
+        """:meth:`RecordingWriter.frame`, queued (the image copied)."""
+        self._queue.put(("frame", float(t), None if image is None else np.array(image), tuple(detections)))
+
+    def fused(self, t: float, nis: Sequence[float], accepted: int) -> None:
+        """:meth:`RecordingWriter.fused`, queued."""
+        self._queue.put(("fused", float(t), tuple(float(v) for v in nis), int(accepted)))
+
+    def close(self) -> None:
+        """Wait for everything queued to be written, close the file; raise what the writing raised."""
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
 
     def __enter__(self) -> "RunRecording":
         return self

@@ -29,6 +29,10 @@ LAYERS = {
     "analysis": {"world", "vehicle", "sensors", "loop"},
     # deployment tools (the target layout planner, printable targets): read maps, predict the filter
     "deploy": {"world", "vehicle", "sensors", "loop", "analysis"},
+    # recordings of runs (read the loop's records); logged drives (written from a loop, replayed
+    # through the same filter set-up and drawn with the analysis pictures)
+    "record": {"world", "vehicle", "sensors", "loop"},
+    "replay": {"world", "vehicle", "sensors", "loop", "analysis", "record"},
     # a sweep is a command's work: it shares the commands' run folder, workers and flag parsers
     "sweep": {"world", "vehicle", "sensors", "loop", "analysis", "commands"},
 }
