@@ -23,6 +23,8 @@ BENCHMARKS: dict[str, str] = {
     "envelope": "localizer accuracy and speed per camera condition (blur, defocus, motion, sRGB, vignetting, "
                 "JPEG, Bayer, noise, resolution) on independently rendered frames",
     "sweep": "one drift study (30 rendered runs) on the local pool and on a local Ray, 1 and 2 workers",
+    "replay": "logged drives: agvsim track on the demo's exported log and bag (round trip, real-time factor) "
+              "and the cost of --record",
 }
 
 
