@@ -13,7 +13,8 @@ __all__ = ["RerunRecorder"]
 
 class RerunRecorder(gym.Wrapper):
     """Record every episode of an agvsim environment to ``path`` (one ``.rrd`` file per
-    episode: ``path`` itself for the first, ``<stem>-<n>.rrd`` beside it for the n-th after it),
+    episode: ``path`` itself for the first, ``<stem>-<n>.rrd`` beside it for the n-th after it;
+    one recording process for all of them, the map of the first episode),
     with the entity paths of :data:`agvsim.record.ENTITY_PATHS` on ``sim_time``.
 
     Each step logs the true, dead-reckoned and estimated poses and the estimate's covariance
@@ -40,9 +41,11 @@ class RerunRecorder(gym.Wrapper):
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
-        self._close()
         loop = self.env.unwrapped.loop
-        self.recording = RunRecording(self._episode_path(), f"episode-{self.episodes}", loop.map, self.every)
+        if self.recording is None:
+            self.recording = RunRecording(self._episode_path(), f"episode-{self.episodes}", loop.map, self.every)
+        else:
+            self.recording.restart(self._episode_path(), f"episode-{self.episodes}")
         self.episodes += 1
         self._frame, self._status = None, None
         self._log(loop, info)

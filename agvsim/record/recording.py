@@ -2,7 +2,7 @@
 on one ``sim_time`` timeline (seconds), to look at in the Rerun viewer (``rerun run.rrd``).
 
 :class:`RunRecording` writes one recording (one ``recording_id``) to one ``.rrd`` file (from a
-thread of its own: a run waits for none of it but the end). The
+process of its own: a run waits for none of it but the end). The
 entity paths are :data:`ENTITY_PATHS` (stable: scripts and blueprints may rely on them):
 
 ========================== =============================================================
@@ -33,12 +33,12 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Iterable, Sequence
+from typing import Iterable, NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["ENTITY_PATHS", "TIMELINE", "TRAIL_PERIOD", "TRAIL_SPACING", "RecordingWriter", "RunRecording", "detection_label", "detection_outline",
-           "ellipse_points"]
+__all__ = ["ENTITY_PATHS", "MapLayers", "TIMELINE", "TRAIL_PERIOD", "TRAIL_SPACING", "RecordingWriter", "RunRecording", "detection_label", "detection_outline",
+           "ellipse_points", "map_layers"]
 
 #: the timeline every entity is logged on (seconds of simulated or logged time)
 TIMELINE = "sim_time"
@@ -78,6 +78,36 @@ BATCH = 1024
 
 def _empty_rows() -> dict[str, list]:
     return {"t": [], "sigma": [], "error": [], **{name: [] for name in POSES}}
+
+
+class MapLayers(NamedTuple):
+    """What a recording shows of a map (:func:`map_layers`; plain arrays, so that it crosses to
+    the recording's process).
+
+    Attributes:
+        walls: each wall's centreline, ``(k, 2)`` (m).
+        target_xy, target_normal: ``(T, 2)`` face centres (m) and unit normals.
+        target_labels: ``"<id> (<polarity>)"`` per target; target_positive: (T,) bool.
+        station_xy: ``(S, 2)`` (m); station_ids: their ids.
+    """
+
+    walls: tuple
+    target_xy: np.ndarray
+    target_normal: np.ndarray
+    target_labels: tuple
+    target_positive: tuple
+    station_xy: np.ndarray
+    station_ids: tuple
+
+
+def map_layers(world_map) -> MapLayers:
+    """The :class:`MapLayers` of an :class:`agvsim.world.map.Map`."""
+    ts, ss = world_map.targets, world_map.stations
+    return MapLayers(tuple(np.asarray(w.points, dtype=float) for w in world_map.walls),
+                     np.array([t.position for t in ts], dtype=float).reshape(-1, 2),
+                     np.array([t.normal for t in ts], dtype=float).reshape(-1, 2),
+                     tuple(f"{t.id} ({t.polarity})" for t in ts), tuple(t.polarity == "positive" for t in ts),
+                     np.array([s.pose[:2] for s in ss], dtype=float).reshape(-1, 2), tuple(s.id for s in ss))
 
 
 def ellipse_points(mean_xy, cov_xy, k: float = 2.0, n: int = 48) -> np.ndarray:
@@ -125,7 +155,8 @@ class RecordingWriter:
     Args:
         path: the ``.rrd`` file (written; its folder is made).
         recording_id: the recording's id (e.g. ``"seed-3"``); the application id is ``"agvsim"``.
-        world_map: the map whose walls, targets and stations are logged static (None: no map).
+        world_map: the map (or its :class:`MapLayers`) whose walls, targets and stations are
+            logged static (None: no map).
         every: log every ``every``-th camera frame (1: all of them); the poses and metrics of
             every step whatever it is.
 
@@ -148,25 +179,22 @@ class RecordingWriter:
         self._pieces = 0
         self._trails: dict[str, list] = {name: [] for name in POSES}
         if world_map is not None:
-            self.map(world_map)
+            self.map(world_map if isinstance(world_map, MapLayers) else map_layers(world_map))
 
     # -- static -------------------------------------------------------------------------------
-    def map(self, world_map) -> None:
-        """The map's walls, targets (and their facing) and stations, static."""
+    def map(self, layers: "MapLayers") -> None:
+        """The map's walls, targets (and their facing) and stations (:func:`map_layers`), static."""
         rr, log = self._rr, self.stream.log
-        log("world/map/walls", rr.LineStrips2D([np.asarray(w.points, dtype=float) for w in world_map.walls],
-                                               colors=(120, 120, 120)), static=True)
-        targets = world_map.targets
-        if targets:
-            xy = np.array([t.position for t in targets], dtype=float)
-            log("world/map/targets", rr.Points2D(xy, labels=[f"{t.id} ({t.polarity})" for t in targets],
-                                                 colors=[(0, 0, 0) if t.polarity == "positive" else (200, 120, 0)
-                                                         for t in targets], radii=0.08), static=True)
-            log("world/map/targets/facing", rr.Arrows2D(origins=xy, vectors=0.5 * np.array(
-                [t.normal for t in targets], dtype=float)), static=True)
-        if world_map.stations:
-            log("world/map/stations", rr.Points2D([s.pose[:2] for s in world_map.stations],
-                                                  labels=[s.id for s in world_map.stations], radii=0.06,
+        log("world/map/walls", rr.LineStrips2D(list(layers.walls), colors=(120, 120, 120)), static=True)
+        if len(layers.target_xy):
+            log("world/map/targets", rr.Points2D(layers.target_xy, labels=list(layers.target_labels),
+                                                 colors=[(0, 0, 0) if positive else (200, 120, 0)
+                                                         for positive in layers.target_positive], radii=0.08),
+                static=True)
+            log("world/map/targets/facing", rr.Arrows2D(origins=layers.target_xy, vectors=0.5 * layers.target_normal),
+                static=True)
+        if len(layers.station_xy):
+            log("world/map/stations", rr.Points2D(layers.station_xy, labels=list(layers.station_ids), radii=0.06,
                                                   colors=(44, 160, 44)), static=True)
 
     # -- per step -----------------------------------------------------------------------------
@@ -283,11 +311,47 @@ class RecordingWriter:
 
 
 
+def _serve(queue, errors, args) -> None:
+    """The recording process: :class:`RecordingWriter` calls from ``queue`` until ``None``; the
+    first error's message on ``errors`` (Ctrl-C is the parent's: it closes the recording)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    writer, failed = None, False
+    try:
+        writer = RecordingWriter(*args)
+    except Exception as exc:  # (reported to the parent at close)
+        errors.put(f"{args[0]}: {exc}")
+        failed = True
+    while True:
+        item = queue.get()
+        if item is None:
+            break
+        if item[0] == "restart":  # (a new file: the last one closed, the same map and thinning)
+            if writer is not None:
+                writer.close()
+            args = (item[1], item[2], *args[2:])
+            writer, failed = None, False
+            item = ("__init__",)
+        if failed:
+            continue
+        try:
+            if item[0] == "__init__":
+                writer = RecordingWriter(*args)
+            else:
+                getattr(writer, item[0])(*item[1:])
+        except Exception as exc:
+            errors.put(f"{args[0]}: {type(exc).__name__}: {exc}")
+            failed = True
+    if writer is not None:
+        writer.close()
+
+
 class RunRecording:
-    """One run's recording, written to ``path`` by a thread of its own: each call here queues
-    copies of its arguments and returns; the thread makes the :class:`RecordingWriter` calls (the
-    import of Rerun, the JPEG encoding and the logging overlap the run's compiled kernels, which
-    release the GIL). The same methods and arguments as :class:`RecordingWriter`.
+    """One run's recording, written to ``path`` by a process of its own: each call here queues
+    its arguments and returns, the process makes the :class:`RecordingWriter` calls (Rerun's
+    import, the JPEG encoding and the logging run on another core, not in the run's time). The
+    same methods and arguments as :class:`RecordingWriter`.
 
     Args:
         path: the ``.rrd`` file (written; its folder is made).
@@ -296,42 +360,26 @@ class RunRecording:
         every: log every ``every``-th camera frame (1: all of them); the poses and metrics of
             every step whatever it is.
 
-    Use as a context manager, or call :meth:`close` (which waits for the queue to be written and
-    raises what the thread raised).
+    Use as a context manager, or call :meth:`close` (which waits for everything queued to be
+    written and raises ``ValueError`` with what the writing raised). Ctrl-C in the run does not
+    stop the recording process: closing the recording keeps what it holds.
     """
 
     def __init__(self, path: str | os.PathLike, recording_id: str, world_map=None, every: int = 1) -> None:
-        import queue
-        import threading
+        import multiprocessing
 
         from localizer.numeric import check_number
 
         self.path = os.fspath(path)
         every = int(check_number("record every", every, low=1, integer=True))
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._work, args=(path, recording_id, world_map, every),
+        context = multiprocessing.get_context("spawn")
+        self._queue = context.Queue()
+        self._errors = context.Queue()
+        layers = None if world_map is None else map_layers(world_map)
+        self._process = context.Process(target=_serve, args=(self._queue, self._errors,
+                                                             (self.path, recording_id, layers, every)),
                                         name="agvsim-recording", daemon=True)
-        self._thread.start()
-
-    def _work(self, *args) -> None:
-        try:
-            writer = RecordingWriter(*args)
-        except BaseException as exc:  # (raised again by close)
-            self._error = exc
-            writer = None
-        while True:
-            item = self._queue.get()
-            if item is None:
-                break
-            if writer is None or self._error is not None:
-                continue
-            try:
-                getattr(writer, item[0])(*item[1:])
-            except BaseException as exc:
-                self._error = exc
-        if writer is not None:
-            writer.close()
+        self._process.start()
 
     def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
         """:meth:`RecordingWriter.poses`, queued."""
@@ -346,18 +394,32 @@ class RunRecording:
         """:meth:`RecordingWriter.fused`, queued."""
         self._queue.put(("fused", float(t), tuple(float(v) for v in nis), int(accepted)))
 
+    def restart(self, path: str | os.PathLike, recording_id: str) -> None:
+        """Close this file and go on in a new one (the same map and thinning; the same process:
+        an agent's next episode starts without waiting for Rerun's import)."""
+        self.path = os.fspath(path)
+        self._queue.put(("restart", self.path, recording_id))
+
     def close(self) -> None:
-        """Wait for everything queued to be written, close the file; raise what the writing raised."""
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join()
-        if self._error is not None:
-            error, self._error = self._error, None
-            raise error
+        """Wait for everything queued to be written, close the file; ``ValueError`` with what the
+        writing raised."""
+        import queue
+
+        if self._process is None:
+            return
+        self._queue.put(None)
+        self._queue.close()
+        self._queue.join_thread()
+        self._process.join()
+        self._process = None
+        try:
+            message = self._errors.get_nowait()
+        except queue.Empty:
+            return
+        raise ValueError(f"the recording failed: {message}")
 
     def __enter__(self) -> "RunRecording":
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
-
