@@ -45,3 +45,13 @@ def test_each_episode_is_its_own_recording_and_the_steps_pass_through(tmp_path):
     for paths in (first, second):
         assert {"world/map/walls", "world/map/targets", "world/truth", "world/estimate", "world/dead_reckoning",
                 "world/estimate/covariance", "camera/image", "filter/status", "metrics/position_error"} <= paths, paths
+
+
+def test_a_recording_that_cannot_be_written_says_so_at_close(tmp_path):
+    from agvsim.record import RunRecording
+
+    (tmp_path / "file").write_text("not a folder")
+    rec = RunRecording(tmp_path / "file" / "run.rrd", "seed-0")
+    rec.poses(0.0, {"truth": (0.0, 0.0, 0.0)})
+    with pytest.raises(ValueError, match="the recording failed: .*run.rrd"):
+        rec.close()
