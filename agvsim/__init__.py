@@ -31,7 +31,7 @@ _LAZY = {
     "OdometryErrorModel": "agvsim.vehicle.encoders",
     "ODOMETRY_PRESETS": "agvsim.vehicle.encoders:PRESETS",
     # sensors
-    "CameraMount": "localizer.mount",
+    "CameraMount": "localizer.model.mount",
     "VisionConfig": "agvsim.sensors.vision",
     "SOURCES": "agvsim.sensors.registry",
     "make_source": "agvsim.sensors.registry",

@@ -10,7 +10,7 @@ from agvsim.sensors.backends import check_backend
 from agvsim.sensors.vision import LENSES_MM
 from agvsim.vehicle.encoders import PRESETS
 from envs.tasks import TASK_NAMES
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_choice, check_number
 
 #: the forms of the ``covariance`` observation: the 3 x 3 matrix, or its 6 unique entries
@@ -38,7 +38,7 @@ class EnvConfig:
         render_backend: how ``rendered`` frames are drawn, one of
             :data:`agvsim.sensors.backends.BACKENDS`: ``raycast`` (compiled, the default)
             or ``pyrender`` (OpenGL, the reference).
-        camera_mount: where the camera sits on the vehicle, a :class:`localizer.mount.CameraMount`
+        camera_mount: where the camera sits on the vehicle, a :class:`localizer.model.mount.CameraMount`
             or a dict of its fields (m, rad); None: the map's recommended mount (its YAML's
             ``camera_mount``).
         lens: focal length of the thesis camera (mm), one of :data:`agvsim.sensors.vision.LENSES_MM`.
@@ -95,7 +95,7 @@ class EnvConfig:
                                  f"expected some of {', '.join(known)}")
             object.__setattr__(self, "camera_mount", CameraMount(**self.camera_mount))
         if self.camera_mount is not None and not isinstance(self.camera_mount, CameraMount):
-            raise ValueError("EnvConfig.camera_mount must be None, a localizer.mount.CameraMount or a dict "
+            raise ValueError("EnvConfig.camera_mount must be None, a localizer.model.mount.CameraMount or a dict "
                              f"of its fields, got {self.camera_mount!r}")
         if self.observe_image and not source_class(self.observations).draws_frames:
             raise ValueError(f"EnvConfig.observe_image=True needs a source that draws frames; "

@@ -10,14 +10,16 @@ Public API::
     detect_targets(image, camera, target=TargetSpec(), method="exact", **params)
         -> list[TargetObservation]                # SI units, thesis angle conventions
     DetectorParams, DetectionStats, TargetPose, CameraMount, annotate
-    localizer.synthetic                          # exact synthetic frames for tests/benches
-    localizer.thesis_points                      # the thesis's test points (Tables 5.1-5.4)
+    localizer.tools.synthetic                     # exact synthetic frames for tests/benches
+    localizer.thesis.points                       # the thesis's test points (Tables 5.1-5.4)
 
-Modules, in pipeline order: :mod:`localizer.scan` (scan lines), :mod:`localizer.recognize`
-(search and verification), :mod:`localizer.thesis_edges` / :mod:`localizer.subpixel_edges`
-(edge records in :mod:`localizer.edges`), :mod:`localizer.thesis_pose` /
-:mod:`localizer.exact_pose` (pose records in :mod:`localizer.pose`),
-:mod:`localizer.photometric`, :mod:`localizer.detect`. Compiled kernels:
+The folders, in the order a frame goes through them: :mod:`localizer.model` (the camera, the
+target, the parameters, the observation), :mod:`localizer.image` (reading frames, pyramid
+levels, the sharpened copy), :mod:`localizer.search` (the row scan and the candidate stacks),
+:mod:`localizer.measure` (sub-pixel edges, the exact pose and its covariance, the photometric
+refinement), or :mod:`localizer.thesis` (the thesis's own edges and pose); :mod:`localizer.detect`
+runs them (``detect_targets``), :mod:`localizer.filter` fuses the observations. Around them:
+:mod:`localizer.tools` (calibration, synthetic frames, annotation). Compiled kernels:
 :mod:`localizer._kernels` (flags: :mod:`localizer._jit`).
 """
 from __future__ import annotations
@@ -25,21 +27,21 @@ from __future__ import annotations
 from localizer.lazy import lazy_exports
 
 #: public name -> module that defines it. Loaded on first use (PEP 562), so importing a
-#: light module such as :mod:`localizer.numeric` or :mod:`localizer.mount` does not load
+#: light module such as :mod:`localizer.numeric` or :mod:`localizer.model.mount` does not load
 #: numba and the compiled kernels.
 _LAZY = {
-    "annotate": "localizer.annotation",
-    "Camera": "localizer.camera",
-    "CameraMount": "localizer.mount",
+    "annotate": "localizer.tools.annotation",
+    "Camera": "localizer.model.camera",
+    "CameraMount": "localizer.model.mount",
     "detect_targets": "localizer.detect",
-    "TargetPose": "localizer.geometry",
-    "ImageMeasurements": "localizer.observation",
-    "TargetObservation": "localizer.observation",
-    "METHODS": "localizer.params",
-    "DetectionStats": "localizer.params",
-    "DetectorParams": "localizer.params",
-    "POLARITIES": "localizer.target",
-    "TargetSpec": "localizer.target",
+    "TargetPose": "localizer.model.geometry",
+    "ImageMeasurements": "localizer.model.observation",
+    "TargetObservation": "localizer.model.observation",
+    "METHODS": "localizer.model.params",
+    "DetectionStats": "localizer.model.params",
+    "DetectorParams": "localizer.model.params",
+    "POLARITIES": "localizer.model.target",
+    "TargetSpec": "localizer.model.target",
 }
 
 __all__ = sorted(_LAZY)

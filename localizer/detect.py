@@ -11,22 +11,22 @@ from localizer._kernels.measure import linear_box
 from localizer._kernels.records import FrameStatus
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
-from localizer.camera import Camera
-from localizer.exact_pose import exact_measure, exact_measure_lut, exact_pose
-from localizer.fused import FrameTargets, detect_frame, frame_plan
+from localizer.model.camera import Camera
+from localizer.measure.exact_pose import exact_measure, exact_measure_lut, exact_pose
+from localizer.measure.fused import FrameTargets, detect_frame, frame_plan
 from localizer.interrupts import deferred_interrupt
 from localizer.numeric import check_choice
-from localizer.observation import TargetObservation, observation_of, pose_fields
-from localizer.params import METHODS, DetectionStats, DetectorParams
-from localizer.pyramid import LEVEL_ROWS, detect_pyramid
-from localizer.pose import PoseEstimate
-from localizer.recognize import candidate_stack, find_stacks
-from localizer.sharpen import GAINS, unsharp_copies
-from localizer.subpixel_edges import subpixel_edges
-from localizer.target import TargetSpec
-from localizer.target_finish import MAX_ALPHA, MAX_FIT_RMS, SRGB_TO_LINEAR, finish, window_parts
-from localizer.thesis_edges import thesis_edges
-from localizer.thesis_pose import thesis_pose
+from localizer.model.observation import TargetObservation, observation_of, pose_fields
+from localizer.model.params import METHODS, DetectionStats, DetectorParams
+from localizer.image.pyramid import LEVEL_ROWS, detect_pyramid
+from localizer.measure.pose import PoseEstimate
+from localizer.search.recognize import candidate_stack, find_stacks
+from localizer.image.sharpen import GAINS, unsharp_copies
+from localizer.measure.subpixel_edges import subpixel_edges
+from localizer.model.target import TargetSpec
+from localizer.measure.target_finish import MAX_ALPHA, MAX_FIT_RMS, SRGB_TO_LINEAR, finish, window_parts
+from localizer.thesis.edges import thesis_edges
+from localizer.thesis.pose import thesis_pose
 
 #: px, the per-edge error floor of a clipped target (at least): the clipped pixels hide up to
 #: ~0.58 px of where a sharp edge lies, a uniform error of sd 0.58 / sqrt(12) ~ 0.17 px per edge
@@ -48,7 +48,7 @@ ENCODED_SHIFT = 0.16
 #: of 1.1 sd. Clipped targets (whose clipped pixels hide up to ~0.6 px of each edge) are not held to it
 MAX_SHIFT_SHARE = 0.75
 #: the largest normalised residual of the exact fit (on the frame's own pixels) of a target that only
-#: the search of the sharpened copy found (:func:`localizer.sharpen.unsharp`): sharpening makes some
+#: the search of the sharpened copy found (:func:`localizer.image.sharpen.unsharp`): sharpening makes some
 #: lettering pass the search's tests (an H whose crossbar a light stripe hides, strokes in noise;
 #: residuals 1.32 and 4.8) that the frame's edges do not fit, where the blurred targets it is for
 #: fit within their noise (blur3, the blurriest condition of the envelope benchmark, seeds 0-2: 99 %
@@ -123,7 +123,7 @@ def detect_targets(image, camera: Camera, target: TargetSpec = TargetSpec(), met
             target is reported only if the exact model also fits it, which rejects lettering
             the thesis's verification accepts); ``"exact"`` -- subpixel edges and a
             perspective-exact least-squares pose. Both share the recognizer
-            (:mod:`localizer.recognize`).
+            (:mod:`localizer.search.recognize`).
         stats: optional :class:`DetectionStats` filled in for this frame.
         **params: any field of :class:`DetectorParams` (thesis defaults).
     Returns:
@@ -172,8 +172,8 @@ def _detect(img: np.ndarray, camera: Camera, p: DetectorParams, target: TargetSp
     out = _search_measure(img, img, camera, p, target, method, st)
     if not out and method == "exact" and p.sharpen_sigma > 0 and p.sharpen_amount > 0 and not p.debug_dir:
         # nothing found: the narrow runs of a steep, strongly blurred target are lost to the search,
-        # which looks again on a sharpened copy (localizer.sharpen); edges and pose from the frame
-        # (at the gains of localizer.sharpen.GAINS in turn, until one finds a target)
+        # which looks again on a sharpened copy (localizer.image.sharpen); edges and pose from the frame
+        # (at the gains of localizer.image.sharpen.GAINS in turn, until one finds a target)
         for copy in unsharp_copies(img, p.sharpen_sigma, tuple(g * p.sharpen_amount for g in GAINS)):
             for o in _search_measure(img, copy, camera, p, target, method, st):
                 if o.fit_rms <= SHARPENED_MAX_RMS:
@@ -218,7 +218,7 @@ def _search_measure(img: np.ndarray, search_img: np.ndarray, camera: Camera, p: 
         out.append(obs)
     out = _drop_shared_bars(_unambiguous(out, st) if method == "exact" else out, st)
     if p.debug_dir:
-        from localizer.annotation import write_debug_images
+        from localizer.tools.annotation import write_debug_images
 
         write_debug_images(p.debug_dir, img, camera, p, stacks, verified, out)
     return out
@@ -338,7 +338,7 @@ def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, f
     ``(r0, r1, c0, c1)`` in the frame, and the window's camera and stack (:func:`_window_parts`)
     when they were made (a distorted camera's edges are measured in Python), else None (an
     undistorted camera's: the window made and measured in one compiled call,
-    :func:`localizer.exact_pose.exact_measure_lut`)."""
+    :func:`localizer.measure.exact_pose.exact_measure_lut`)."""
     box = _linear_box(img, v)
     if camera.has_distortion:
         import cv2
@@ -368,7 +368,7 @@ def _makes_target(edges: tuple, top: tuple, bottom: tuple, p: DetectorParams) ->
 def _blur_sd(img: np.ndarray, v, est=None) -> float:
     """The blur sd (px) of the verified stack ``v``'s row-mean profile on the rows its vertical
     edges are measured on (:func:`localizer._kernels.subpixel.rows_blur`): ``est.blur`` when its
-    pose ``est`` (measured on ``img``) carries it (:func:`localizer.exact_pose.exact_measure`)."""
+    pose ``est`` (measured on ``img``) carries it (:func:`localizer.measure.exact_pose.exact_measure`)."""
     if est is not None and not math.isnan(est.blur):
         return est.blur
     bounds = np.asarray(v.bounds, np.float64)
@@ -397,9 +397,9 @@ def _measure(img: np.ndarray, camera: Camera, target: TargetSpec, v, method: str
 
 def _fused(img: np.ndarray, camera: Camera, target: TargetSpec, p: DetectorParams, f: FrameTargets,
            st: DetectionStats | None) -> list[TargetObservation]:
-    """The observations of the fused call's verified stacks (:func:`localizer.fused.detect_frame`),
+    """The observations of the fused call's verified stacks (:func:`localizer.measure.fused.detect_frame`),
     top to bottom, left to right: each ``ACCEPTED`` one, and each ``REFINE`` one refined and
-    checked by :func:`localizer.target_finish.finish` (as :func:`_exact` would); ``REJECTED`` ones
+    checked by :func:`localizer.measure.target_finish.finish` (as :func:`_exact` would); ``REJECTED`` ones
     counted as ``st.rejected["pose"]``."""
     found = enumerate(f.targets)
     if len(f.targets) > 1:  # (the search's order: top to bottom, left to right, as find_stacks)

@@ -1,6 +1,6 @@
 """Package names loaded on first use (PEP 562), for every package ``__init__`` of the project.
 
-    _LAZY = {"Camera": "localizer.camera", "PRESETS": "agvsim.vehicle.encoders:PRESETS"}
+    _LAZY = {"Camera": "localizer.model.camera", "PRESETS": "agvsim.vehicle.encoders:PRESETS"}
     __all__ = sorted(_LAZY)
     __getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 

@@ -21,8 +21,8 @@ __all__ = ["PARTS", "compile_part", "warm"]
 
 
 def _frame():
-    from localizer.camera import Camera
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.model.camera import Camera
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     camera = Camera.thesis(16.0)
     return camera, render_frame(camera, pose_at_column(camera, 3.0, math.radians(20.0)))
@@ -53,7 +53,7 @@ def pyramid() -> None:
     halvings, read from a window of the frame)."""
     import numpy as np
 
-    from localizer.pyramid import level_image
+    from localizer.image.pyramid import level_image
 
     image = np.zeros((16, 16), np.uint8)
     level_image(image, 2)

@@ -29,7 +29,7 @@ settings.load_profile("ci" if os.environ.get("CI") else "default")
 def numba_kernels():
     """Load (or compile) the localizer's numba kernels once: one synthetic frame, both methods."""
     from localizer import Camera, detect_targets
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     cam = Camera.thesis(16.0)
     img = render_frame(cam, pose_at_column(cam, 3.0, math.radians(20.0)))

@@ -1,6 +1,6 @@
 """Which camera mount sees the map's targets best along a route: a visibility scan.
 
-For each candidate :class:`~localizer.mount.CameraMount` the route is sampled
+For each candidate :class:`~localizer.model.mount.CameraMount` the route is sampled
 every ``step`` metres at the path's heading, and at each sample the targets the
 camera can see are counted with the same visibility test the ``geometric`` and
 ``synthetic`` sources use (:func:`agvsim.sensors.vision.visible_targets`: whole
@@ -22,7 +22,7 @@ import numpy as np
 
 from agvsim.loop.pure_pursuit import RoutePath
 from agvsim.sensors.vision import VisionConfig, targets_from_map, visible_targets
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_number
 
 __all__ = ["MountCoverage", "candidate_mounts", "scan_mounts"]

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from agvsim.analysis import topdown_key as tk
-from localizer.annotation import draw_text, text_box
+from localizer.tools.annotation import draw_text, text_box
 
 # RGB colours
 _BACKGROUND = (250, 250, 246)

@@ -1,6 +1,6 @@
 """The key of a top-down view: swatches with labels, a scale bar, and the axes' tick labels.
 
-Drawn with OpenCV (shapes) and :func:`localizer.annotation.draw_text` (text at its final size),
+Drawn with OpenCV (shapes) and :func:`localizer.tools.annotation.draw_text` (text at its final size),
 into the panels :class:`agvsim.analysis.topdown.TopDownView` leaves beside the map, never on it.
 """
 from __future__ import annotations
@@ -10,7 +10,7 @@ import math
 import cv2
 import numpy as np
 
-from localizer.annotation import draw_text, text_box
+from localizer.tools.annotation import draw_text, text_box
 
 TEXT_PX = 14  # key and axis labels: capitals about 10 px high
 SWATCH = (30, 14)  # px

@@ -4,7 +4,7 @@ The frames come from :mod:`agvsim.bench.envelope_frames` (a supersampled render 
 target on a cluttered wall, area-averaged to the pixels) through
 :mod:`agvsim.bench.envelope_sensor` (defocus and motion PSFs, vignetting, exposure, flare,
 shot and read noise, clipping, sRGB, Bayer demosaicing, JPEG): none of it from
-:mod:`localizer.synthetic`, whose frames share the localizer's assumptions. Poses: distance
+:mod:`localizer.tools.synthetic`, whose frames share the localizer's assumptions. Poses: distance
 1.5-5 m, alpha within +-60 deg, the whole print in view.
 
 Per condition (:mod:`agvsim.bench.envelope_conditions`): the target found (a detection within

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from agvsim.bench.envelope_sensor import REFERENCE_WIDTH, FrameSettings, expose
-from localizer.camera import Camera
-from localizer.geometry import TargetPose
-from localizer.target import TargetSpec
+from localizer.model.camera import Camera
+from localizer.model.geometry import TargetPose
+from localizer.model.target import TargetSpec
 
 #: reflectances of the printed target: ink and paper
 BLACK, WHITE = 0.05, 0.85

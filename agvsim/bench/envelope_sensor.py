@@ -1,6 +1,6 @@
 """The camera side of the envelope benchmark's frames: optics, sensor and encoding.
 
-Independent of :mod:`localizer.synthetic` (which shares the localizer's assumptions: ideal
+Independent of :mod:`localizer.tools.synthetic` (which shares the localizer's assumptions: ideal
 box pixels, Gaussian blur, a linear response). Here a linear-light image of the scene (the
 area-averaged radiance of the supersampled render, :mod:`agvsim.bench.envelope_frames`) goes
 through, in this order:

@@ -5,9 +5,9 @@ is of kind ``KINDS[i % len(KINDS)]`` and is drawn from ``numpy.random.default_rn
 with ``frame_seed = seed * 1_000_003 + i``, so :func:`make_frame` (kind, frame_seed) rebuilds
 any frame the report names. Kinds: uniform noise, Gaussian noise on a flat or a gradient
 background, random rectangles, random bars (widths, heights, contrasts), rows of equal bars
-(:func:`localizer.synthetic.equal_bar_frame`), stripes, checkerboards, saturated / black /
+(:func:`localizer.tools.synthetic.equal_bar_frame`), stripes, checkerboards, saturated / black /
 white frames, random lines, and the adversarial frames of
-:func:`localizer.synthetic.adversarial_frames`.
+:func:`localizer.tools.synthetic.adversarial_frames`.
 
 Both methods (``exact``, ``thesis``) run on every frame. A crash is any exception (its kind,
 the frame's kind and seed are kept for the first few); every detection is a false one. Time
@@ -79,7 +79,7 @@ def _random_bars(rng):
 
 
 def _equal_bars(rng):
-    from localizer.synthetic import equal_bar_frame
+    from localizer.tools.synthetic import equal_bar_frame
     from localizer import Camera
 
     width = int(rng.integers(1, 30))
@@ -134,7 +134,7 @@ def _lines(rng):
 
 
 def _adversarial(rng):
-    from localizer.synthetic import adversarial_frames
+    from localizer.tools.synthetic import adversarial_frames
     from localizer import Camera
 
     frames = adversarial_frames(Camera.thesis(16.0), rng)

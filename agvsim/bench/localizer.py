@@ -49,7 +49,7 @@ def _paste(refl, tag, x, y, size):
 def _speed_frames(camera, n, rng, n_targets=1, with_markers=True):
     import numpy as np
 
-    from localizer.synthetic import real_photos, render_frame
+    from localizer.tools.synthetic import real_photos, render_frame
     from localizer import TargetPose
 
     photos = list(real_photos(camera).values()) or [np.full(camera.shape, 0.5)]
@@ -173,7 +173,7 @@ def accuracy(n: int, rng) -> dict:
     import numpy as np
 
     from localizer import Camera, detect_targets
-    from localizer.synthetic import random_pose, real_photos, render_frame, target_outline
+    from localizer.tools.synthetic import random_pose, real_photos, render_frame, target_outline
 
     cams = {16: Camera.thesis(16.0), 50: Camera.thesis(50.0)}
     photos = list(real_photos(cams[16]).values())
@@ -234,7 +234,7 @@ def accuracy(n: int, rng) -> dict:
 
 def false_positives(rng) -> dict:
     from localizer import Camera, detect_targets
-    from localizer.synthetic import adversarial_frames, expose, real_photos
+    from localizer.tools.synthetic import adversarial_frames, expose, real_photos
 
     cam = Camera.thesis(16.0)
     frames = dict(adversarial_frames(cam, rng))
@@ -256,7 +256,7 @@ def blank_frames(repeats: int) -> dict:
     import numpy as np
 
     from localizer import Camera, detect_targets
-    from localizer.synthetic import adversarial_frames
+    from localizer.tools.synthetic import adversarial_frames
 
     cam = Camera.thesis(16.0)
     frames = adversarial_frames(cam, np.random.default_rng(4))

@@ -17,7 +17,7 @@ def parse_mount(text: str, height: float = 1.2):
     Raises:
         argparse.ArgumentTypeError: one line naming the bad part.
     """
-    from localizer.mount import CameraMount
+    from localizer.model.mount import CameraMount
 
     text = text.strip()
     if text == "map":

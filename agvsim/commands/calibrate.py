@@ -8,7 +8,7 @@ from typing import NamedTuple
 from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json, log
 
-#: the suffixes taken from a folder given as IMAGES (the formats localizer.io reads)
+#: the suffixes taken from a folder given as IMAGES (the formats localizer.image.io reads)
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm", ".pbm", ".pnm")
 #: the suffixes of --out: OpenCV FileStorage formats Camera.from_opencv_yaml reads
 OUT_SUFFIXES = (".yaml", ".yml", ".xml")
@@ -22,7 +22,7 @@ FOCAL_WARN = 0.01
 
 def board_size(text: str) -> tuple[int, int]:
     """``COLSxROWS`` inner corners (``9x6``) -> ``(9, 6)``, each a whole number >= 3."""
-    from localizer.calibrate import check_board
+    from localizer.tools.calibrate import check_board
 
     cols, sep, rows = text.lower().partition("x")
     try:
@@ -116,7 +116,7 @@ def _write(camera, path) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from localizer.calibrate import MIN_VIEWS, calibrate_views
+    from localizer.tools.calibrate import MIN_VIEWS, calibrate_views
 
     cols, rows = args.board
     out = _check_out(args.out)
@@ -162,8 +162,8 @@ def _find_boards(files: list, cols: int, rows: int) -> _Views:
 
     from tqdm import tqdm
 
-    from localizer.calibrate import find_chessboard
-    from localizer.io import read_image_grey
+    from localizer.tools.calibrate import find_chessboard
+    from localizer.image.io import read_image_grey
 
     board = f"{cols}x{rows}"
     rows_out, corners, used, failed = [], [], [], 0
@@ -219,7 +219,7 @@ def _warn_if_weak(result) -> None:
 
 
 def _distortion(cam) -> dict:
-    from localizer.calibrate import DIST_NAMES
+    from localizer.tools.calibrate import DIST_NAMES
 
     return dict(zip(DIST_NAMES, cam.dist or (0.0,) * len(DIST_NAMES)))
 

@@ -145,7 +145,7 @@ class FrameAnnotator:
         """Draw ``observations`` on ``frame`` with its index and time, and write it (a frame that
         was not read is left out)."""
         from localizer import annotate
-        from localizer.annotation import draw_text, text_box
+        from localizer.tools.annotation import draw_text, text_box
 
         if frame.image is None:
             return

@@ -5,7 +5,7 @@
 * a folder: its image files (by extension, :data:`IMAGE_EXTENSIONS`) in name order, numbers in
   names compared as numbers (``frame_2.png`` before ``frame_10.png``); other entries skipped and
   counted;
-* an image file: its header is one of :data:`localizer.io.FORMATS`, or its extension is an
+* an image file: its header is one of :data:`localizer.image.io.FORMATS`, or its extension is an
   image's (a file named ``.png`` that is not one is then reported by the reader);
 * a video: anything ``cv2.VideoCapture`` opens (``.mp4``, ``.avi``, ``.mkv``, ...);
 * anything else: an :class:`Input` whose ``error`` says so (no such file, or none of these).
@@ -110,7 +110,7 @@ class Input:
     def frames(self, fps: float | None = None, first_index: int = 0) -> Iterator[Frame]:
         """The frames, in order (``fps``: frames per second for the times of image files and
         folders, and of a video whose decoder gives none; ``first_index``: an image file's index)."""
-        from localizer.io import read_image_grey
+        from localizer.image.io import read_image_grey
 
         if self.kind == "error":
             yield Frame(self.path, first_index, None, error=self.error)
@@ -184,7 +184,7 @@ def _capture(path: str):
 
 
 def _is_image_file(path: Path) -> bool:
-    from localizer.io import image_size
+    from localizer.image.io import image_size
 
     if path.suffix.lower() in IMAGE_EXTENSIONS:
         return True

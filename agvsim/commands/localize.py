@@ -8,7 +8,7 @@ import sys
 
 from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json, log, plural
-from localizer.params import METHODS
+from localizer.model.params import METHODS
 
 #: failures told one by one on stderr (the rest are counted in the summary)
 _TOLD_FAILURES = 10

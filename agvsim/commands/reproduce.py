@@ -49,7 +49,7 @@ def format_table(res: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from localizer.thesis_points import reproduce_thesis
+    from localizer.thesis.points import reproduce_thesis
 
     res = reproduce_thesis(args.seed, args.noise, args.blur, args.column)
     if args.json:

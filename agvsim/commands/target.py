@@ -25,7 +25,7 @@ from pathlib import Path
 from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, emit_json
 from agvsim.deploy.printing import PAPERS, POLARITY_TEXT, SIZES
-from localizer.target import POLARITIES
+from localizer.model.target import POLARITIES
 
 #: the paper of ``--paper``'s default
 DEFAULT_PAPER = "a4"
@@ -117,7 +117,7 @@ def _check_out(path: Path) -> Path:
 
 def _plain_targets(args: argparse.Namespace):
     from agvsim.deploy.printing import PrintTarget
-    from localizer.target import TargetSpec
+    from localizer.model.target import TargetSpec
 
     ids = args.ids or [DEFAULT_ID]
     _check_unique(ids)

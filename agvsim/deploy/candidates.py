@@ -17,7 +17,7 @@ import numpy as np
 
 from agvsim.world import geometry as geo
 from agvsim.world.map import MapTarget
-from localizer.target import TargetSpec
+from localizer.model.target import TargetSpec
 
 __all__ = ["FRONT_CLEARANCE", "FRONT_DEPTH", "NO_TARGET_SURFACES", "SIDES", "Face", "candidate_targets", "parse_faces"]
 

@@ -21,7 +21,7 @@ _TOP_KEY = re.compile(r"^[A-Za-z_][\w-]*\s*:")
 
 def target_line(t, planned: bool) -> str:
     """One target as a YAML flow mapping line of the ``targets:`` list."""
-    from localizer.target import TargetSpec
+    from localizer.model.target import TargetSpec
 
     size = ""
     if t.spec != TargetSpec():

@@ -1,6 +1,6 @@
 """Printable two-bar targets at true scale: a vector PDF (matplotlib's PDF backend).
 
-Every length here is in **millimetres** on the paper (the targets' :class:`~localizer.target.TargetSpec`
+Every length here is in **millimetres** on the paper (the targets' :class:`~localizer.model.target.TargetSpec`
 is in metres and is converted once); page coordinates have their origin at the page's bottom-left
 corner, x right, y up. A page is a matplotlib figure exactly the paper's size (inches = mm / 25.4)
 with one axes covering it whose data coordinates are millimetres, so 1 mm of data is 72 / 25.4 PDF
@@ -12,7 +12,7 @@ under the id (where it hangs, for a map's targets; how to join halves), and at t
 100 mm scale bar ("check your printer's scaling is 100 %") with a note of the target's size and
 polarity and the page number. *positive*: black bars, white margin and gap (the paper); *negative*:
 white bars in a black field that takes in the margin too (the simulator's texture and
-:func:`localizer.synthetic.render_reflectance` draw a negative target the same way).
+:func:`localizer.tools.synthetic.render_reflectance` draw a negative target the same way).
 
 Paper (:data:`PAPERS`) and the thesis target (300 x 225 mm with its margin): nothing is ever
 scaled, and the bars are never cut. A target whose face (margin included) fits the paper inside
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
 
-from localizer.target import POLARITIES, TargetSpec
+from localizer.model.target import POLARITIES, TargetSpec
 
 #: Paper name -> (width, height) in portrait, mm.
 PAPERS: dict[str, tuple[float, float]] = {

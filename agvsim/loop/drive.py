@@ -40,7 +40,7 @@ class DriveSettings:
         targets_removed: share of the map's targets removed, spread evenly over its list
             (``0 <= share < 1``; :meth:`world`), applied after ``drop_targets``.
         false_rate: geometric source only: mean false detections per frame.
-        camera_mount: a :class:`localizer.mount.CameraMount`; None: the map's.
+        camera_mount: a :class:`localizer.model.mount.CameraMount`; None: the map's.
         lens: the thesis camera's focal length (mm; one of :data:`agvsim.sensors.vision.LENSES_MM`).
         lighting: scale of the map's illumination levels (1: the map's own; 0.5: half as bright).
     """

@@ -121,7 +121,7 @@ def ellipse_points(mean_xy, cov_xy, k: float = 2.0, n: int = 48) -> np.ndarray:
 
 def detection_outline(measurements) -> np.ndarray:
     """``(5, 2)`` closed outline (px) of a target found in a frame, from its
-    :class:`localizer.observation.ImageMeasurements`: the outer bar edges from the bar tops to
+    :class:`localizer.model.observation.ImageMeasurements`: the outer bar edges from the bar tops to
     the bar bottoms."""
     m = measurements
     x0, x1 = m.outer_edges

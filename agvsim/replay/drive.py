@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_choice, check_number
 
 __all__ = ["ODOMETRY_KINDS", "DriveLog", "VehicleFile", "clean_times", "increments", "load_vehicle"]
@@ -32,7 +32,7 @@ class VehicleFile:
     Attributes:
         track_width: distance between the drive wheels' contact points (m).
         ticks_per_metre: encoder counts per metre of wheel travel (ticks odometry; 0: not given).
-        mount: where the camera sits (:class:`~localizer.mount.CameraMount`; yaw in rad).
+        mount: where the camera sits (:class:`~localizer.model.mount.CameraMount`; yaw in rad).
         odometry: the odometry error preset the filter assumes (one of
             :data:`agvsim.vehicle.encoders.PRESETS`).
     """

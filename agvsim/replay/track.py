@@ -152,7 +152,7 @@ def track(log: DriveLog, setup: TrackSetup, progress: Callable[[int], None] | No
     """
     from agvsim.loop.closed_loop import LoopConfig, with_turn_blur
     from localizer import detect_targets
-    from localizer.target import TargetSpec
+    from localizer.model.target import TargetSpec
 
     t, ds, dth = increments(log, setup.vehicle)
     ekf = _filter(setup, float(log.odometry_times[0]))

@@ -17,7 +17,7 @@ import numpy as np
 from agvsim.sensors.base import SimObservation
 from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.vision import VisionConfig, match_truth
-from localizer.geometry import TargetPose
+from localizer.model.geometry import TargetPose
 from localizer.numeric import check_number
 
 __all__ = ["RenderedSource"]
@@ -90,7 +90,7 @@ class RenderedSource:
                 command: tuple[float, float] = (0.0, 0.0)) -> list[SimObservation]:
         from agvsim.sensors.render import RenderConditions
         from localizer import detect_targets
-        from localizer.target import TargetSpec
+        from localizer.model.target import TargetSpec
 
         renderer = self._get_renderer()
         cond = RenderConditions(**{**self.conditions, "velocity": (float(command[0]), float(command[1]))})

@@ -1,6 +1,6 @@
 """The ``synthetic`` source: targets warped onto a plain background, found by the localizer.
 
-The frame is drawn by :mod:`localizer.synthetic` (exact perspective warp of each
+The frame is drawn by :mod:`localizer.tools.synthetic` (exact perspective warp of each
 visible target on a plain background, the map's lighting level, blur and sensor
 noise) and :func:`localizer.detect_targets` finds the targets. Real detector, no scene.
 """
@@ -19,7 +19,7 @@ __all__ = ["SyntheticFrameSource"]
 
 
 class SyntheticFrameSource:
-    """Frames drawn by :mod:`localizer.synthetic`, targets found by :func:`localizer.detect_targets`.
+    """Frames drawn by :mod:`localizer.tools.synthetic`, targets found by :func:`localizer.detect_targets`.
 
     Args:
         world_map, vision: as for :class:`GeometricSource`.
@@ -54,7 +54,7 @@ class SyntheticFrameSource:
     def observe(self, true_pose, rng: np.random.Generator,
                 command: tuple[float, float] = (0.0, 0.0)) -> list[SimObservation]:
         from localizer import detect_targets
-        from localizer.synthetic import Lighting, render_frame
+        from localizer.tools.synthetic import Lighting, render_frame
 
         visible = visible_targets(self.map, self.vision, true_pose, self._targets)
         lens, _ = self.vision.mount.camera_pose(true_pose)
@@ -70,7 +70,7 @@ class SyntheticFrameSource:
             pols = [self.map.targets[i].polarity for i, _ in visible]
         else:
             spec, pols = self.map.targets[0].spec if self.map.targets else None, []
-        from localizer.target import TargetSpec
+        from localizer.model.target import TargetSpec
 
         t0 = time.perf_counter()
         frame = render_frame(self.camera, poses, spec or TargetSpec(), pols, light, self.blur, self.noise,

@@ -2,7 +2,7 @@
 
 Visibility (geometric and synthetic sources): the whole printed target inside
 the image with bars at least 5 px wide and 16 rows tall
-(:func:`localizer.synthetic.in_envelope`), range and incidence limits, and no
+(:func:`localizer.tools.synthetic.in_envelope`), range and incidence limits, and no
 wall or obstacle crossing the 2-D line of sight (:meth:`Solids.blocker`).
 """
 from __future__ import annotations
@@ -13,12 +13,12 @@ from functools import cached_property
 
 import numpy as np
 
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 from localizer.filter import TargetMap, ViewLimits, predict_all
-from localizer.geometry import TargetPose
-from localizer.mount import CameraMount
+from localizer.model.geometry import TargetPose
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_choice, check_number
-from localizer.params import METHODS
+from localizer.model.params import METHODS
 
 __all__ = ["LENSES_MM", "VisionConfig", "match_truth", "targets_from_map", "visible_targets"]
 
@@ -31,7 +31,7 @@ class VisionConfig:
     """The camera on the vehicle: where it sits, its lens, what the localizer is trusted with.
 
     Attributes:
-        mount: the :class:`~localizer.mount.CameraMount`; None: the map's recommended mount
+        mount: the :class:`~localizer.model.mount.CameraMount`; None: the map's recommended mount
             (``camera_mount`` in its YAML), filled in by :meth:`for_map`.
         focal_mm: lens focal length (mm) of the thesis camera, one of :data:`LENSES_MM`.
         max_range: farthest target the localizer is trusted with (m).
@@ -47,7 +47,7 @@ class VisionConfig:
 
     def __post_init__(self) -> None:
         if self.mount is not None and not isinstance(self.mount, CameraMount):
-            raise ValueError(f"VisionConfig.mount must be a localizer.mount.CameraMount or None, got {self.mount!r}")
+            raise ValueError(f"VisionConfig.mount must be a localizer.model.mount.CameraMount or None, got {self.mount!r}")
         focal = check_number("VisionConfig.focal_mm", self.focal_mm, unit="mm")
         if focal not in LENSES_MM:
             raise ValueError(f"VisionConfig.focal_mm must be one of {', '.join(f'{v:g}' for v in LENSES_MM)} (mm), "
@@ -114,7 +114,7 @@ def visible_targets(world_map, vision: VisionConfig, true_pose,
     Z, ok = predict_all(np.asarray(true_pose, dtype=float), tm, mount, vision.visibility_limits)
     if not ok.any():
         return []
-    from localizer.synthetic import in_envelope
+    from localizer.tools.synthetic import in_envelope
 
     lens, _ = mount.camera_pose(true_pose)
     out = []

@@ -19,8 +19,8 @@ from agvsim.world import geometry as geo
 from agvsim.world.fields import MapError
 from agvsim.world.files import MAP_SUFFIXES, maps_dir, resolve_map_path, shipped_maps
 from agvsim.world.map import DEFAULT_SURFACE, DEFAULT_WALL_HEIGHT, LightingZone, Map, MapTarget, Obstacle, Station, Wall
-from localizer.mount import CameraMount
-from localizer.target import POLARITIES, TargetSpec
+from localizer.model.mount import CameraMount
+from localizer.model.target import POLARITIES, TargetSpec
 
 __all__ = ["MAP_SUFFIXES", "MapError", "load_map", "map_from_dict", "maps_dir", "resolve_map_path", "shipped_maps"]
 

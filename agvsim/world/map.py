@@ -21,9 +21,9 @@ import numpy as np
 
 from agvsim.world import geometry as geo
 from agvsim.world.spatial import Solids
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_number
-from localizer.target import POLARITIES, TargetSpec
+from localizer.model.target import POLARITIES, TargetSpec
 
 __all__ = ["DEFAULT_SURFACE", "DEFAULT_WALL_HEIGHT", "LightingZone", "Map", "MapTarget", "Obstacle", "Station",
            "Wall"]
@@ -183,7 +183,7 @@ class Map:
         bounds: ``(xmin, ymin, xmax, ymax)`` (m) over walls (including their
             thickness) and obstacles.
         camera_mount: the camera mount recommended for this floor (the YAML's
-            ``camera_mount``; a forward-looking :class:`~localizer.mount.CameraMount` if absent).
+            ``camera_mount``; a forward-looking :class:`~localizer.model.mount.CameraMount` if absent).
     """
 
     name: str

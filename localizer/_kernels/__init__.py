@@ -3,7 +3,7 @@
 The package is private: the public API is :mod:`localizer`. Inside it every kernel has a
 public name, so that the Python modules of :mod:`localizer` import them without reaching
 into another module's private names. Conventions of every kernel: pixel coordinates
-follow :mod:`localizer.camera` (pixel centres at integers, ``x`` = column, ``y`` = row),
+follow :mod:`localizer.model.camera` (pixel centres at integers, ``x`` = column, ``y`` = row),
 images are ``(H, W)`` uint8 C-contiguous arrays, lengths on the target are metres, angles
 radians. The named tuples and enums passed in and out are in :mod:`.records`.
 
@@ -22,7 +22,7 @@ Modules, in pipeline order:
 * :mod:`.exact_pose` -- the perspective-exact pose fit;
 * :mod:`.measure` -- subpixel edges, target test and exact pose fused in one call;
 * :mod:`.photometric` -- the whole-target photometric refinement;
-* :mod:`.area` -- the area-averaged levels of a large frame (:mod:`localizer.pyramid`).
+* :mod:`.area` -- the area-averaged levels of a large frame (:mod:`localizer.image.pyramid`).
 
 and :mod:`.arrays`, the element-wise copies the kernels use instead of assigning an array to
 a slice (smaller compiled code: its docstring says why).

@@ -1,4 +1,4 @@
-"""Area-averaged levels of a large frame (:func:`localizer.pyramid.level_image`): the mean of
+"""Area-averaged levels of a large frame (:func:`localizer.image.pyramid.level_image`): the mean of
 each aligned 2 x 2 block, rounded to 8 bits, once (:func:`area_half`) or twice in one pass
 (:func:`area_quarter`, a 4 x 4 block).
 

@@ -2,7 +2,7 @@
 (:mod:`localizer._kernels.clipped`) and the photometric refinement
 (:mod:`localizer._kernels.photometric`).
 
-A pixel ``j`` covers ``[j - 0.5, j + 0.5]`` (:mod:`localizer.camera`); the image of an
+A pixel ``j`` covers ``[j - 0.5, j + 0.5]`` (:mod:`localizer.model.camera`); the image of an
 ideal step at ``e`` is blurred by a Gaussian of sd ``s`` sampled on the pixel grid
 (taps ``-K..K``, ``K = ceil(3.5 sd)``, at least 3, normalised).
 """

@@ -1,7 +1,7 @@
-"""Kernels of the perspective-exact pose (Appendix A; :func:`localizer.exact_pose.exact_pose`).
+"""Kernels of the perspective-exact pose (Appendix A; :func:`localizer.measure.exact_pose.exact_pose`).
 
 Unknowns ``p = (X, Z, alpha, Y, delta)``: the target centre in the camera frame (m),
-its orientation (rad, thesis sign, :mod:`localizer.geometry`) and ``delta`` (px), the
+its orientation (rad, thesis sign, :mod:`localizer.model.geometry`) and ``delta`` (px), the
 common shift of every edge towards its dark side. Measurements: the four vertical edges
 and the tops and bottoms of both bars at their centre columns (px). The projection:
 :mod:`localizer._kernels.projection`; the linear algebra: :mod:`localizer.smallmat`.
@@ -201,7 +201,7 @@ def gauss_newton(p0, meas, wv, cam, geom, iterations):
 
 @jit
 def fit(m, cam, target, positive, sigma_floor, iterations):
-    """The numeric core of :func:`localizer.exact_pose.exact_pose`.
+    """The numeric core of :func:`localizer.measure.exact_pose.exact_pose`.
 
     Args:
         m: the :class:`~localizer._kernels.records.MeasuredEdges` (px): edges (4,), tops and
@@ -214,7 +214,7 @@ def fit(m, cam, target, positive, sigma_floor, iterations):
 
     Fits from the start of :func:`initial` and from the other root of A.14 (unless
     within 0.5 deg), keeps the better minimum and widens its covariance by the
-    separation of the other one as :func:`localizer.exact_pose.exact_pose` describes.
+    separation of the other one as :func:`localizer.measure.exact_pose.exact_pose` describes.
     Returns a :class:`~localizer._kernels.records.PoseFit`: status ``FITTED``,
     ``SINGULAR`` (singular normal equations) or ``BEHIND`` (no fit stayed in front of the
     camera), ``p`` (5,), chi-square, ``cov`` (3, 3) over (d, beta, alpha), the two A.14

@@ -38,7 +38,7 @@ def detect_frame(image, search_image, search, settings, lut):
     Args:
         image: ``(H, W)`` uint8 grey frame, C-contiguous.
         search_image: ``(H, W)`` uint8, the frame the search runs on: ``image`` itself, or its
-            sharpened copy (:func:`localizer.sharpen.unsharp`; the stacks' positions, bar ends and
+            sharpened copy (:func:`localizer.image.sharpen.unsharp`; the stacks' positions, bar ends and
             grey levels are then those of the copy, the edges and the pose those of ``image``).
         search: ``(1,)`` :data:`~localizer._kernels.records.SEARCH_SETTINGS` record.
         settings: ``(1,)`` :data:`~localizer._kernels.records.MEASURE_SETTINGS` record.

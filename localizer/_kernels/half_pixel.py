@@ -1,4 +1,4 @@
-"""Kernels of the thesis's half-pixel edges (§4.6.2, :func:`localizer.thesis_edges.thesis_edges`).
+"""Kernels of the thesis's half-pixel edges (§4.6.2, :func:`localizer.thesis.edges.thesis_edges`).
 
 The 1x2 / 2x1 gradient windows ``|f(x) - f(x+1)|`` (eq 4-20) over a neighbourhood of a
 rough edge; the edge is put half way between the two pixels of the largest gradient.

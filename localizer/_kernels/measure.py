@@ -23,7 +23,7 @@ from localizer._kernels.target_test import makes_target
 
 @jit
 def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, settings):
-    """:func:`localizer.exact_pose.exact_measure`'s compiled body.
+    """:func:`localizer.measure.exact_pose.exact_measure`'s compiled body.
 
     Args:
         image: ``(H, W)`` uint8 frame.

@@ -1,5 +1,5 @@
 """Kernel of the frame's sensor-noise estimate, for the noise-scaled contrast test of the
-line thresholding (thesis §4.4.2; :func:`localizer.scan.noise_contrast`).
+line thresholding (thesis §4.4.2; :func:`localizer.search.scan.noise_contrast`).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Kernels of the whole-target photometric pose refinement (:mod:`localizer.photometric`: the
+"""Kernels of the whole-target photometric pose refinement (:mod:`localizer.measure.photometric`: the
 model, the censoring of clipped pixels, the starts); the geometry is
 :mod:`localizer._kernels.projection`'s, the blurred box-pixel step :mod:`localizer._kernels.blur`'s."""
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Where the target's edges and lines image: the one projection of the pose kernels.
 
-Conventions: :mod:`localizer.geometry` (camera frame x right, y down, z forward; target
+Conventions: :mod:`localizer.model.geometry` (camera frame x right, y down, z forward; target
 centre at ``(X, Y, Z)`` m; orientation ``a`` = alpha rad, thesis sign). A point at target
 abscissa ``u`` (m, to the target's right) lies at ``(X + u cos a, ., Z - u sin a)``, so
 the target's vertical line at ``u`` images at column
@@ -8,7 +8,7 @@ the target's vertical line at ``u`` images at column
     x = cx + fx (X + u cos a) / (Z - u sin a)
 
 (:func:`edge_x`, :func:`edge_x_jacobian`). The bar edges are at ``u = -1.5b, -0.5b,
-0.5b, 1.5b`` (:func:`bar_edge_u`, :func:`localizer.geometry.bar_edges_u`). The ray of a
+0.5b, 1.5b`` (:func:`bar_edge_u`, :func:`localizer.model.geometry.bar_edges_u`). The ray of a
 column with ``x / z = t`` meets the target plane at range ``z = D / (cos a + t sin a)``,
 ``D = Z cos a + X sin a`` (:func:`plane`, :func:`ray_inverse_range`); a target row at
 ``v`` (m, down) images there at ``y = cy + fy (Y + v) / z``.

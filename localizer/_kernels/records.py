@@ -35,7 +35,7 @@ __all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "MEASURE
 
 # ------------------------------------------------------------------ inputs
 class Intrinsics(NamedTuple):
-    """Pinhole intrinsics of an undistorted camera (:mod:`localizer.camera`): focal lengths
+    """Pinhole intrinsics of an undistorted camera (:mod:`localizer.model.camera`): focal lengths
     and principal point, all in pixels."""
 
     fx: float
@@ -69,14 +69,14 @@ class RunTest(NamedTuple):
 class SearchSettings(NamedTuple):
     """Everything the compiled search (:func:`localizer._kernels.search.recognize`) needs
     besides the image, resolved for one frame size, camera and target
-    (:func:`localizer.recognize.search_settings`; passed as :func:`as_record`). Grey levels
+    (:func:`localizer.search.recognize.search_settings`; passed as :func:`as_record`). Grey levels
     are 8-bit levels."""
 
     step: int  # rows between coarse scan lines (thesis N)
     window: int  # px, local midway-threshold window
     contrast_window: int  # px, thesis "area of five pixels"
     local_contrast: float  # grey levels that switch a line to the midway threshold (at least)
-    noise_contrast: float  # or this many times the frame's noise sd, if more (localizer.scan.noise_contrast)
+    noise_contrast: float  # or this many times the frame's noise sd, if more (localizer.search.scan.noise_contrast)
     global_level: int  # grey level of the global threshold (<= 255)
     # the §4.5.1 run test (the fields of RunTest)
     min_bar_px: int
@@ -114,7 +114,7 @@ class MeasureSettings(NamedTuple):
     """The per-target part of the fused frame call (:func:`localizer._kernels.frame.detect_frame`;
     passed as :func:`as_record`): the camera, the target, the exact-pose settings and the
     decisions :func:`localizer.detect.detect_targets` makes on each target's edges, resolved in
-    Python (:func:`localizer.fused.frame_plan`)."""
+    Python (:func:`localizer.measure.fused.frame_plan`)."""
     fx: float  # px, the undistorted camera's focal lengths and principal point
     fy: float
     cx: float
@@ -178,7 +178,7 @@ class FrameStatus(IntEnum):
     one verified stack."""
     REJECTED = 0  # no pose: the edges make no target, no fit converged, or the pose fails a check
     ACCEPTED = 1  # a pose, every check passed
-    REFINE = 2  # a pose to refine on the pixels (Python: localizer.photometric), then check
+    REFINE = 2  # a pose to refine on the pixels (Python: localizer.measure.photometric), then check
 
 
 class FitStatus(IntEnum):
@@ -244,7 +244,7 @@ class ProfileFit(NamedTuple):
 
 
 class MeasuredEdges(NamedTuple):
-    """Edge measurements of one target (px, undistorted; :class:`localizer.edges.EdgeMeasurements`)."""
+    """Edge measurements of one target (px, undistorted; :class:`localizer.measure.edges.EdgeMeasurements`)."""
 
     edges: np.ndarray  # (4,) x of the vertical edges, left to right
     edges_sd: np.ndarray  # (4,) their standard errors

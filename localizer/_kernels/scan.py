@@ -1,4 +1,4 @@
-"""Kernels of :mod:`localizer.scan`: line thresholding, run-length coding and the triple
+"""Kernels of :mod:`localizer.search.scan`: line thresholding, run-length coding and the triple
 search (thesis §4.4-4.5.1) on a batch of scan lines, a ``(k, W)`` uint8 array.
 
 Loops here work on slices passed to small kernels (:func:`~localizer._kernels.arrays.copy`,
@@ -18,7 +18,7 @@ from localizer._kernels.arrays import copy, fill
 
 @jit
 def line_extrema(lines, window):
-    """:func:`localizer.scan.line_extrema`, compiled: the edge-padded lines laid end to end in one buffer,
+    """:func:`localizer.search.scan.line_extrema`, compiled: the edge-padded lines laid end to end in one buffer,
     then the max / min over 2, 4, ... ``2^L <= window`` pixels by doubling (each pass two
     vectorised element-wise loops over the whole buffer, :func:`max_min_into`; values
     that straddle two lines are never read back), and two overlapping ``2^L``-pixel
@@ -78,7 +78,7 @@ def max_min_into(a, b, c, d, mx, mn):
 
 @jit
 def threshold(lines, hi, lo, contrast_window, local_contrast, global_level):
-    """Per-pixel threshold of :func:`localizer.scan.threshold_lines` given the running max ``hi`` and min
+    """Per-pixel threshold of :func:`localizer.search.scan.threshold_lines` given the running max ``hi`` and min
     ``lo`` (k, W) of the lines.
 
     Per line (the thesis's rule): if the largest contrast over any ``contrast_window``-pixel
@@ -182,7 +182,7 @@ def grown(a, n, cap):
 
 @inline
 def near_equal(l0, l1, l2, width_tolerance, width_slack, max_edge_shift):
-    """The §4.5.1 run test (:func:`localizer.scan.near_equal`) for one triple of run lengths
+    """The §4.5.1 run test (:func:`localizer.search.scan.near_equal`) for one triple of run lengths
     ``l0, l1, l2`` (px)."""
     c = min(max((l1 - 0.5 * (l0 + l2)) * 0.25, -max_edge_shift), max_edge_shift)
     a0 = l0 + 2.0 * c
@@ -194,12 +194,12 @@ def near_equal(l0, l1, l2, width_tolerance, width_slack, max_edge_shift):
 
 @jit
 def triples(l, x, line, width, runs):
-    """The loop of :func:`localizer.scan.find_triples` over the run-length code ``l``
+    """The loop of :func:`localizer.search.scan.find_triples` over the run-length code ``l``
     (lengths, px), ``x`` (first columns), ``line`` (line indices), all (R,), of lines
     ``width`` px long, with the run test ``runs`` (:class:`~localizer._kernels.records.RunTest`).
 
     Returns ``(i (T,), x (T, 4), regions (T, 7, 2))``: the index of each triple's first
-    bar, its run boundaries (columns) and sampled regions (see :class:`localizer.scan.Triples`).
+    bar, its run boundaries (columns) and sampled regions (see :class:`localizer.search.scan.Triples`).
     """
     min_bar_px, width_tolerance, width_slack = runs.min_bar_px, runs.width_tolerance, runs.width_slack
     max_edge_shift, min_margin_ratio = runs.max_edge_shift, runs.min_margin_ratio

@@ -16,7 +16,7 @@ from localizer._kernels.verify import verify
 
 @jit
 def recognize(image, settings):
-    """The search of :func:`localizer.recognize.find_stacks`, compiled as one call.
+    """The search of :func:`localizer.search.recognize.find_stacks`, compiled as one call.
 
     Args:
         image: ``(H, W)`` uint8 grey frame, C-contiguous.
@@ -24,7 +24,7 @@ def recognize(image, settings):
             :class:`~localizer._kernels.records.SearchSettings` of the frame.
 
     The coarse scan lines are every ``s.step``-th image row, thresholded over ``s.window``
-    px (:func:`localizer.scan.threshold_lines`; the contrast that switches a pixel to the
+    px (:func:`localizer.search.scan.threshold_lines`; the contrast that switches a pixel to the
     midway threshold is ``local_contrast`` or, on a noisy frame, ``noise_contrast`` times the
     frame's noise sd, :func:`localizer._kernels.noise.frame_noise`). In order: threshold, code and search the
     lines (:func:`localizer._kernels.scan.threshold`, ``rle``, ``triples``), grey levels and
@@ -58,7 +58,7 @@ def recognize(image, settings):
     rows_out = np.empty(64, np.int64)
     x_out = np.empty((64, 4), np.int64)
     # the contrast that switches to the midway threshold: at least what the frame's own noise
-    # reaches within a threshold window (localizer.scan.noise_contrast)
+    # reaches within a threshold window (localizer.search.scan.noise_contrast)
     contrast = max(s.local_contrast, s.noise_contrast * frame_noise(image, step))
     binary = threshold(lines, hi, lo, s.contrast_window, contrast, s.global_level)
     g, ln, line, xr = rle(binary)
@@ -161,7 +161,7 @@ def recognize(image, settings):
 def coarse_seeds(image, lv, ty, tx, tpos, s):
     """The cheap part of the verification (§4.5.2) for every coarse triple, in one pass.
 
-    (a) Grey levels ``lv`` (T, 7) of the triple on its own line (:func:`localizer.scan.triple_levels`):
+    (a) Grey levels ``lv`` (T, 7) of the triple on its own line (:func:`localizer.search.scan.triple_levels`):
     the gap must differ from both bars by ``min(min_contrast, min_contrast_ratio * bright)``,
     the margins must not be nearer the bars' shade than 0.35 of the contrast, and (periodic
     test) no run beyond a margin may be of the bars' shade (below 0.3).

@@ -1,4 +1,4 @@
-"""Kernels of the subpixel edges (:func:`localizer.subpixel_edges.subpixel_edges`).
+"""Kernels of the subpixel edges (:func:`localizer.measure.subpixel_edges.subpixel_edges`).
 
 The gradient peak of each edge located by its centroid inside a symmetric window
 re-centred on the estimate (two passes, :func:`centroid_edge`); the vertical edges on
@@ -275,7 +275,7 @@ def line_fits(grp, xcol, cxs, ys, sd_fallback):
 
 @jit
 def vertical_stage(image, rows, bounds, positive):
-    """Vertical edges of :func:`localizer.subpixel_edges.subpixel_edges` on ``rows`` (n,) of
+    """Vertical edges of :func:`localizer.measure.subpixel_edges.subpixel_edges` on ``rows`` (n,) of
     ``image``, from the stack's median run boundaries ``bounds`` (4,): ``(xs (n, 4), fit)``,
     the centroid edges per row (px) and the
     :class:`~localizer._kernels.records.ProfileFit` of the row-mean profile
@@ -323,7 +323,7 @@ def horizontal_stage(image, xs, fit, ends, positive):
 
 @jit
 def subpixel(image, rows, bounds, ends, positive):
-    """:func:`localizer.subpixel_edges.subpixel_edges` for an undistorted camera as one
+    """:func:`localizer.measure.subpixel_edges.subpixel_edges` for an undistorted camera as one
     compiled call: the three stages (:func:`vertical_stage`, :func:`horizontal_stage`,
     :func:`line_fits`) on the rows ``rows`` (n,) of ``image``, from the stack's median run
     boundaries ``bounds`` (4,) and rough bar ends ``ends`` (2, 2) int64.

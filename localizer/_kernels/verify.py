@@ -1,7 +1,7 @@
 """Kernels of the pattern verification (thesis §4.5.2) of one stack, and the rough bar ends.
 
 A *stack* is consecutive image rows each holding a matching bar-gap-bar triple
-(:class:`localizer.recognize.Stack`); verification checks its height, aspect ratio,
+(:class:`localizer.search.recognize.Stack`); verification checks its height, aspect ratio,
 grey levels and margins.
 """
 from __future__ import annotations

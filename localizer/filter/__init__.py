@@ -18,7 +18,7 @@ from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, pose_from_measurement,
                                           pose_from_measurement_jacobian, predict_all,
                                           predict_measurement)
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, OdometryNoise, arc_motion, compose, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, RelocalizeConfig, Relocalizer
 from localizer.filter.update import PoseKF, nis, position_sigma, predict_pose, update_pose

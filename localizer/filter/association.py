@@ -25,7 +25,7 @@ from scipy.stats import chi2
 
 from localizer.filter.measurement import (Measurement, TargetMap, ViewLimits,
                                           measurement_jacobian, predict_all)
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["ACCEPTED", "AMBIGUOUS", "Association", "DUPLICATE", "GATED", "GateConfig", "NO_CANDIDATE",

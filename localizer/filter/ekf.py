@@ -71,7 +71,7 @@ from localizer.filter.limits import (LOST, MAX_HEADING_SIGMA, MAX_ODOMETRY_STEP,
                                      with_refused, within_bounds)
 from localizer.filter.measurement import Measurement, TargetMap, informative
 from localizer.filter.misfits import line_up
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, Relocalizer
 from localizer.filter.update import PoseKF, nis, position_sigma, predict_pose, update_pose

@@ -15,7 +15,7 @@ Geometry (top view, map frame x east, y north, θ CCW)::
 
 The camera frame's x axis (right) is the map direction ``φ - π/2``, so a
 target right of the optical axis has ``λ < φ`` and (thesis eq 4.4,
-:mod:`localizer.geometry`)::
+:mod:`localizer.model.geometry`)::
 
     β = wrap(φ - λ)
 
@@ -59,7 +59,7 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = [

@@ -51,7 +51,7 @@ from localizer.filter.association import ACCEPTED, GateConfig, associate
 from localizer.filter.measurement import (Measurement, TargetMap, pose_from_measurement,
                                           pose_from_measurement_jacobian)
 from localizer.filter.update import PoseKF, is_positive_definite, position_sigma, predict_pose, update_pose
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.numeric import check_number, wrap_angle
 
 __all__ = ["Hypothesis", "RelocalizeConfig", "Relocalizer"]

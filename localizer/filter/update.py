@@ -25,7 +25,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from localizer.filter.association import innovation
 from localizer.filter.measurement import Measurement, is_positive_definite, measurement_jacobian, predict_measurement
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 from localizer.filter.motion import compose, compose_jacobians
 
 __all__ = ["PoseKF", "is_positive_definite", "nis", "position_sigma", "predict_pose", "update_pose"]

@@ -65,7 +65,7 @@ def pose(tilt_deg, centre) -> tuple[np.ndarray, np.ndarray]:
 
 def render_view(camera: Camera, rvec, tvec, noise: float = 1.0, seed: int = 0) -> np.ndarray:
     """``(H, W)`` uint8 image of the board at pose ``(rvec, tvec)`` (board frame of
-    :func:`localizer.calibrate.board_points`), slightly blurred, with Gaussian noise (grey levels)."""
+    :func:`localizer.tools.calibrate.board_points`), slightly blurred, with Gaussian noise (grey levels)."""
     r = cv2.Rodrigues(np.asarray(rvec, float))[0]
     h_inv = np.linalg.inv(np.column_stack([r[:, 0], r[:, 1], np.asarray(tvec, float)]))
     rays = _rays(camera)
@@ -84,7 +84,7 @@ def render_view(camera: Camera, rvec, tvec, noise: float = 1.0, seed: int = 0) -
 
 def true_corners(camera: Camera, rvec, tvec) -> np.ndarray:
     """``(COLS * ROWS, 2)`` where the board's inner corners project (px)."""
-    from localizer.calibrate import board_points
+    from localizer.tools.calibrate import board_points
 
     pts, _ = cv2.projectPoints(board_points(COLS, ROWS, SQUARE).astype(float), np.asarray(rvec, float),
                                np.asarray(tvec, float), camera.K, np.asarray(camera.dist or (0.0,) * 5))

@@ -11,7 +11,7 @@ import pytest
 
 from agvsim.cli import main
 from localizer import Camera
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.synthetic import pose_at_column, render_frame
 from tests.cli.chessboard_views import TRUE_CAMERA, write_views
 
 BOARD = ["--board", "9x6", "--square", "0.025"]

@@ -17,7 +17,7 @@ import pytest
 
 from agvsim.cli import main
 from localizer import Camera
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 ROOT = Path(__file__).resolve().parents[2]
 #: where the three cuts fall, as shares of the file's length

@@ -6,7 +6,7 @@ import numpy as np
 
 from agvsim.cli import main
 from localizer import Camera
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 
 def test_localize_png_json_and_annotate(tmp_path, capsys):

@@ -20,8 +20,8 @@ import pytest
 from agvsim.cli import main
 from agvsim.commands.frame_rows import COLUMNS
 from localizer import Camera, detect_targets
-from localizer.io import read_image_grey
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.image.io import read_image_grey
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 CAM = Camera.thesis(16.0)
 FPS = 10.0

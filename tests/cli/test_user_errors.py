@@ -11,7 +11,7 @@ import pytest
 
 from agvsim.cli import main
 from localizer import Camera
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 
 def _run(argv, capfd):

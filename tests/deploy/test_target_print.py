@@ -13,7 +13,7 @@ import pytest
 from agvsim.cli import main
 from agvsim.deploy.printing import CROP_GAP, PAPERS, PrintTarget, largest_bar_width, pieces, plan_pages, write_pdf
 from localizer import Camera, TargetPose, TargetSpec, detect_targets
-from localizer.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE, expose
+from localizer.tools.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE, expose
 
 pymupdf = pytest.importorskip("pymupdf")
 

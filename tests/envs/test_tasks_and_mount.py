@@ -11,7 +11,7 @@ import envs  # noqa: F401
 from agvsim.world import load_map
 from envs.config import EnvConfig
 from envs.tasks import TASK_NAMES, TASKS, GotoTask, LocalizeTask, Task
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 
 FAST = {"observations": "geometric"}
 

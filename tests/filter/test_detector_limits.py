@@ -1,6 +1,6 @@
 """The filter's limits against what the detector reports at its envelope's edges.
 
-Frames are rendered (``localizer.synthetic``) at far range, grazing angles and small target
+Frames are rendered (``localizer.tools.synthetic``) at far range, grazing angles and small target
 images, with the 16 mm and 50 mm lenses; ``detect_targets`` measures them and the filter, whose
 state is the truth, fuses the observation of a map target placed where the frame shows it.
 
@@ -24,9 +24,9 @@ from localizer import Camera, detect_targets
 from localizer.filter import ACCEPTED, FilterConfig, GateConfig, PoseEKF, TargetMap, ViewLimits, predict_measurement
 from localizer.filter.limits import UNINFORMATIVE
 from localizer.filter.measurement import MAX_MEASUREMENT_SIGMA
-from localizer.geometry import TargetPose
-from localizer.mount import CameraMount
-from localizer.synthetic import in_envelope, pose_at_column, render_frame
+from localizer.model.geometry import TargetPose
+from localizer.model.mount import CameraMount
+from localizer.tools.synthetic import in_envelope, pose_at_column, render_frame
 
 MOUNT = CameraMount(forward=0.3, lateral=-0.3, yaw=-math.pi / 2)
 X0 = np.array([1.0, 2.0, 0.3])  # the vehicle's true pose, the filter's state
@@ -179,7 +179,7 @@ def test_an_alpha_on_its_other_root_does_not_drag_the_heading():
     observation is fused for its d and β, and the heading stays with the truth.
 
     The detector now measures the sign of α here; its answer where it cannot (the bar heights
-    equal within their noise: ``localizer.thesis_pose``) is made from its detection: the other
+    equal within their noise: ``localizer.thesis.pose``) is made from its detection: the other
     root of eq A.14, its variance widened by the two roots' spread."""
     _, pose, (o,) = detect(16.0, 8.0, -40, 470, "normal", "thesis")
     (other,) = [a for a in o.alpha_candidates if abs(a - o.alpha) > 0.5]

@@ -4,8 +4,8 @@ import math
 import numpy as np
 
 from localizer import Camera, detect_targets
-from localizer.annotation import annotate, draw_text, glyph_height, observation_label, text_box
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.annotation import annotate, draw_text, glyph_height, observation_label, text_box
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 
 def _frame():

@@ -25,7 +25,7 @@ def test_bad_inputs(cam16):
 
 
 def test_colour_image_converted(cam16, rng):
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     img = render_frame(cam16, pose_at_column(cam16, 3.0, 0.3), noise=1.0, rng=rng)
     bgr = np.repeat(img[:, :, None], 3, axis=2)

@@ -14,7 +14,7 @@ from localizer._kernels.blur import ANALYTIC_SD, blur_weights, blurred_step
 from localizer._kernels.clipped import profile_blur
 from localizer._kernels.subpixel import BLUR_EDGE_SIGMA, NARROW_RUNS, blur_floor, rows_blur
 from localizer._kernels.verify import SHARP_REACH, edge_reach
-from localizer.synthetic import render_frame, random_pose, target_outline
+from localizer.tools.synthetic import render_frame, random_pose, target_outline
 
 CAMERA = Camera.thesis(16.0)
 
@@ -168,10 +168,10 @@ def test_the_exact_measurement_reports_the_blur_it_was_measured_at(blur):
     # the blur sd the compiled measurement returns is the row-mean profile's on the rows its edges
     # are measured on: what detect_targets' checks would otherwise compute again
     from localizer._kernels.subpixel import edge_rows
-    from localizer.exact_pose import exact_measure
-    from localizer.params import DetectionStats, DetectorParams
-    from localizer.recognize import find_stacks
-    from localizer.target import TargetSpec
+    from localizer.measure.exact_pose import exact_measure
+    from localizer.model.params import DetectionStats, DetectorParams
+    from localizer.search.recognize import find_stacks
+    from localizer.model.target import TargetSpec
 
     pose, img = next(_frames(CAMERA, blur, 1, 3))
     p = DetectorParams().resolved(*img.shape)

@@ -1,4 +1,4 @@
-"""localizer.calibrate on synthetic chessboard views through a known camera (lens distortion
+"""localizer.tools.calibrate on synthetic chessboard views through a known camera (lens distortion
 included): corners to a tenth of a pixel, intrinsics to a fraction of a percent, bad input refused."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from localizer import Camera
-from localizer.calibrate import MIN_VIEWS, board_points, calibrate_views, find_chessboard, tilt_spread
+from localizer.tools.calibrate import MIN_VIEWS, board_points, calibrate_views, find_chessboard, tilt_spread
 from tests.cli.chessboard_views import COLS, POSES, ROWS, SQUARE, TRUE_CAMERA, pose, render_view, true_corners
 
 

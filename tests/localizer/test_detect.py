@@ -7,8 +7,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from localizer import Camera, DetectionStats, TargetPose, detect_targets
-from localizer.synthetic import in_envelope, pose_at_column, render_frame
-from localizer.thesis_pose import thesis_alpha
+from localizer.tools.synthetic import in_envelope, pose_at_column, render_frame
+from localizer.thesis.pose import thesis_alpha
 
 DEG = math.pi / 180
 
@@ -84,7 +84,7 @@ def test_envelope_corners(lens, d, a, col, lighting, rng):
 
 
 def test_thesis_points_reproduced():
-    from localizer.thesis_points import reproduce_thesis
+    from localizer.thesis.points import reproduce_thesis
 
     res = reproduce_thesis(seed=0)
     pts = res["points"]

@@ -105,7 +105,7 @@ def test_two_strokes_of_lettering_are_not_a_target_on_a_coarser_level():
     # before: on the 960 x 600 level of a sharp 1920 x 1200 frame two strokes of lettering (21, 29
     # and 20 px: bars narrower than their gap by more than a blur explains; the exact fit's common
     # edge shift 1.1 blur sd, localizer.detect.MAX_SHIFT_SHARE) were reported beside the target
-    from localizer.pyramid import level_image
+    from localizer.image.pyramid import level_image
 
     frame = make_frame(BY_NAME["hires_1920"].settings, 0, 25)
     cam = frame.camera.scaled(frame.camera.width // 2, frame.camera.height // 2)
@@ -136,10 +136,10 @@ def test_the_compiled_linearized_window_is_the_python_one():
     import cv2
 
     from localizer.detect import SRGB_TO_LINEAR
-    from localizer.exact_pose import exact_measure, exact_measure_lut
-    from localizer.params import DetectionStats, DetectorParams
-    from localizer.recognize import find_stacks
-    from localizer.target import TargetSpec
+    from localizer.measure.exact_pose import exact_measure, exact_measure_lut
+    from localizer.model.params import DetectionStats, DetectorParams
+    from localizer.search.recognize import find_stacks
+    from localizer.model.target import TargetSpec
 
     frame = make_frame(BY_NAME["gamma"].settings, 0, 3)
     img, cam, tg = frame.image, frame.camera, TargetSpec()
@@ -179,7 +179,7 @@ def test_a_small_blurred_target_is_confirmed_on_its_crop(seed, index):
     # blur3_1280 (7.5 px): steep targets (51-60 deg) 3.7-4.3 m away, 67-83 rows. Before: the crop
     # that confirms a target of the coarse level was scanned at the frame's line spacing, three or
     # four lines across the bars in another phase than the level's, and none passed: not reported
-    # (localizer.pyramid.CROP_LINES)
+    # (localizer.image.pyramid.CROP_LINES)
     frame = make_frame(BY_NAME["blur3_1280"].settings, seed, index)
     found = [o for o in detect_targets(frame.image, frame.camera) if _matches(o, frame.scene.pose)]
     assert len(found) == 1
@@ -191,7 +191,7 @@ def test_a_small_blurred_target_is_confirmed_on_its_crop(seed, index):
 def test_a_target_the_crop_confirms_is_measured_there_not_on_the_search_level(monkeypatch):
     # blur3_2448 seed 2 frame 4 (14 px, 60 deg, 4.3 m): at the frame's line spacing its crop finds
     # nothing, and its measurement on the search level (no pixel-level refinement) is reported
-    import localizer.pyramid as pyramid
+    import localizer.image.pyramid as pyramid
 
     frame = make_frame(BY_NAME["blur3_2448"].settings, 2, 4)
     error = lambda: [abs(o.distance / frame.scene.pose.distance - 1.0)  # noqa: E731

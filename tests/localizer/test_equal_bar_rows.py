@@ -2,14 +2,14 @@
 
 Every neighbouring pair of bars in such a row passes the run test as a (blurred) target,
 and two of 10,005 fuzzed frames were reported as overlapping targets sharing bars. A
-target's bars have a half-bar margin beyond them (``localizer.target``), not a third bar at
+target's bars have a half-bar margin beyond them (``localizer.model.target``), not a third bar at
 the pitch (the periodic test, ``localizer._kernels.scan.triples``), and a bar belongs to one
 target only (``localizer.detect._drop_shared_bars``)."""
 import numpy as np
 import pytest
 
 from localizer import DetectionStats, detect_targets
-from localizer.synthetic import EQUAL_BAR_GRID, equal_bar_frame, equal_bar_rows, pose_at_column, render_frame
+from localizer.tools.synthetic import EQUAL_BAR_GRID, equal_bar_frame, equal_bar_rows, pose_at_column, render_frame
 
 METHODS = ("thesis", "exact")
 

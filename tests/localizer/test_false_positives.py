@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from localizer import detect_targets
-from localizer.synthetic import adversarial_frames, equal_bar_frame, expose, real_photos
+from localizer.tools.synthetic import adversarial_frames, equal_bar_frame, expose, real_photos
 
 
 @pytest.mark.parametrize("method", ["thesis", "exact"])
@@ -34,7 +34,7 @@ def test_real_photos_rejected(cam16):
 
 
 def test_targets_on_real_photo_found(cam16):
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     photos = real_photos(cam16)
     if not photos:

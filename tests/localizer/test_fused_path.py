@@ -1,4 +1,4 @@
-"""The fused path of ``detect_targets`` (one compiled call per frame, :mod:`localizer.fused`) gives
+"""The fused path of ``detect_targets`` (one compiled call per frame, :mod:`localizer.measure.fused`) gives
 the step-by-step path's observations and statistics bit for bit: on envelope frames of every
 kind of target it decides about (sharp, sRGB-encoded, blurred and refined, saturated, large
 frames through the pyramid, a steep blurred target only the search of the sharpened copy finds),
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-import localizer.fused
+import localizer.measure.fused
 from agvsim.bench.envelope_conditions import BY_NAME
 from agvsim.bench.envelope_frames import make_frame
 from localizer import DetectionStats, detect_targets
@@ -31,7 +31,7 @@ def _step_by_step(monkeypatch) -> None:
     def fail(*args):
         raise ZeroDivisionError("forced")
 
-    monkeypatch.setattr(localizer.fused.frame, "detect_frame", fail)
+    monkeypatch.setattr(localizer.measure.fused.frame, "detect_frame", fail)
 
 
 @pytest.mark.parametrize("condition, indices", [("baseline", range(0, 6)), ("webcam", range(0, 6)),

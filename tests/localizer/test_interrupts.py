@@ -9,7 +9,7 @@ import pytest
 import localizer.detect as detect_module
 from localizer import Camera, detect_targets
 from localizer.interrupts import deferred_interrupt
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 
 @pytest.fixture(autouse=True)

@@ -1,5 +1,5 @@
 """Hostile input: an image file whose header claims a huge size is refused before
-decoding (``localizer.io.read_image_grey``)."""
+decoding (``localizer.image.io.read_image_grey``)."""
 import struct
 import zlib
 
@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.io import MAX_IMAGE_PIXELS, PNG_END, image_size, read_image_grey
+from localizer.image.io import MAX_IMAGE_PIXELS, PNG_END, image_size, read_image_grey
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:

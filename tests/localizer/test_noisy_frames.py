@@ -1,5 +1,5 @@
 """Near targets under heavy sensor noise (~8 grey levels): the line thresholding's contrast test
-scales with the noise measured on the frame (:func:`localizer.scan.noise_contrast`,
+scales with the noise measured on the frame (:func:`localizer.search.scan.noise_contrast`,
 :func:`localizer._kernels.noise.frame_noise`)."""
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import pytest
 
 from localizer import Camera, detect_targets
 from localizer._kernels.noise import frame_noise
-from localizer.params import DetectorParams
-from localizer.scan import noise_contrast, threshold_lines
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.model.params import DetectorParams
+from localizer.search.scan import noise_contrast, threshold_lines
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 #: very_noisy frames of the envelope benchmark (seed 0) whose target was lost in the coarse scan
 #: before: the inside of each bar and of the gap (40-46 px, wider than half the 33-px threshold

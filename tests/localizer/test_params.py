@@ -1,5 +1,5 @@
 """Hostile input: every detector parameter is checked, with a message naming the
-parameter, the value and the valid range (``localizer.params.PARAM_RANGES``)."""
+parameter, the value and the valid range (``localizer.model.params.PARAM_RANGES``)."""
 import math
 from dataclasses import fields
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from localizer import DetectorParams, detect_targets
-from localizer.params import PARAM_RANGES
+from localizer.model.params import PARAM_RANGES
 
 
 def test_every_parameter_has_a_range():
@@ -67,7 +67,7 @@ def test_explicit_values_are_kept_when_resolved():
 @pytest.mark.parametrize("window", [3, 9, 31, 255])
 def test_any_valid_edge_window_finds_the_target(cam16, window):
     # the neighbourhood of a rough edge stops half way to the next edge, across and along the bars
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     img = render_frame(cam16, pose_at_column(cam16, 5.0, 0.3), noise=1.0, blur=0.5, rng=np.random.default_rng(2))
     obs = detect_targets(img, cam16, method="thesis", edge_window=window)

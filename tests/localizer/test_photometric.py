@@ -1,4 +1,4 @@
-"""Whole-target photometric refinement of saturated targets (localizer.photometric)."""
+"""Whole-target photometric refinement of saturated targets (localizer.measure.photometric)."""
 import math
 
 import numpy as np
@@ -7,8 +7,8 @@ import pytest
 from localizer import Camera, TargetPose, TargetSpec, detect_targets
 from localizer._kernels.photometric import NP, evaluate, select
 from localizer._kernels.records import Intrinsics, TargetConstants
-from localizer.photometric import MARGIN_SHARE, MAX_LINES, REACH
-from localizer.synthetic import in_envelope, render_frame
+from localizer.measure.photometric import MARGIN_SHARE, MAX_LINES, REACH
+from localizer.tools.synthetic import in_envelope, render_frame
 
 DEG = math.pi / 180
 T = TargetSpec()

@@ -10,7 +10,7 @@ from localizer._kernels.blur import ANALYTIC_SD, blur_weights, closed_step, edge
 from localizer._kernels.photometric import (ITERATIONS, MARGIN_SHARE, MAX_LINES, MIRROR_GIVE_UP, NP, REACH, SIGMA_MAX,
                                             START_ITERATIONS, START_TOL, TOL, evaluate, lm, normal_equations, select)
 from localizer._kernels.records import FitEnds, Intrinsics, TargetConstants
-from localizer.synthetic import render_frame
+from localizer.tools.synthetic import render_frame
 
 DEG = math.pi / 180
 T = TargetSpec()
@@ -177,7 +177,7 @@ def test_blur_is_held_at_its_bound(rng):
     """A target blurred beyond SIGMA_MAX: the fit holds the blur at the bound (the step is
     solved with the blur fixed there, no zig-zag between a clamped step and the full one); the
     range then carries the bias of the narrower model (a few per cent)."""
-    from localizer.photometric import refine_pose
+    from localizer.measure.photometric import refine_pose
 
     cam = Camera.thesis(16.0)
     pose = TargetPose(5.0, 0.02, 20 * DEG, 0.1)

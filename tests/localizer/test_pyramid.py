@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from localizer import Camera, detect_targets
-from localizer.params import DetectorParams
-from localizer.pyramid import LEVEL_ROWS, coarse_factor, detect_pyramid, level_image
-from localizer.synthetic import random_pose, render_frame
+from localizer.model.params import DetectorParams
+from localizer.image.pyramid import LEVEL_ROWS, coarse_factor, detect_pyramid, level_image
+from localizer.tools.synthetic import random_pose, render_frame
 
 
 def test_coarse_factor_keeps_at_least_the_level_rows():

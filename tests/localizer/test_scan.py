@@ -2,9 +2,9 @@
 import numpy as np
 
 from localizer import Camera, detect_targets
-from localizer.params import DetectorParams
-from localizer.scan import find_triples, near_equal, run_length_code, threshold_lines, triple_levels
-from localizer.synthetic import pose_at_column, render_frame
+from localizer.model.params import DetectorParams
+from localizer.search.scan import find_triples, near_equal, run_length_code, threshold_lines, triple_levels
+from localizer.tools.synthetic import pose_at_column, render_frame
 
 
 def _naive_runs(binary):
@@ -73,7 +73,7 @@ def test_line_extrema_match_opencv_dilate_and_erode():
     replicated): odd and even windows, windows longer than the line, strided lines."""
     import cv2
 
-    from localizer.scan import line_extrema
+    from localizer.search.scan import line_extrema
 
     rng = np.random.default_rng(3)
     for window in (3, 4, 5, 32, 33, 65):

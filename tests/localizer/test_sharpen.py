@@ -1,4 +1,4 @@
-"""The second search on a sharpened copy (localizer.sharpen, detect._detect): where the search of a
+"""The second search on a sharpened copy (localizer.image.sharpen, detect._detect): where the search of a
 frame finds nothing, an unsharp-masked copy is searched, and what it finds is measured on the
 frame's own pixels and kept only if those edges fit a target."""
 from __future__ import annotations
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 import localizer.detect
-import localizer.sharpen
+import localizer.image.sharpen
 from agvsim.bench.envelope_conditions import BY_NAME
 from agvsim.bench.envelope_frames import make_frame
 from localizer import DetectionStats, DetectorParams, detect_targets
-from localizer.sharpen import unsharp
+from localizer.image.sharpen import unsharp
 
 #: envelope frames (seed, index) whose steep, blurred target (blur sd 3 px at 512 x 480, |alpha|
 #: 48-60 deg, 3.7-4.6 m) the search of the frame itself loses
@@ -82,19 +82,19 @@ def test_bad_sharpen_settings_are_refused_by_name(field, value):
 @pytest.mark.parametrize("condition, seed, index", [("blur2", 1, 286), ("blur3_1280", 5, 29)])
 def test_the_copy_at_twice_the_gain_is_searched_where_the_first_finds_nothing(monkeypatch, condition, seed, index):
     # targets that neither the frame's search nor that of the copy at gain 1 finds, and the copy at
-    # gain 2 does (localizer.sharpen.GAINS)
-    import localizer.sharpen
+    # gain 2 does (localizer.image.sharpen.GAINS)
+    import localizer.image.sharpen
 
     f = make_frame(BY_NAME[condition].settings, seed, index)
     truth = f.scene.pose
     found = detect_targets(f.image, f.camera)
     assert len(found) == 1 and abs(found[0].distance / truth.distance - 1.0) < 0.02
-    monkeypatch.setattr(localizer.detect, "GAINS", localizer.sharpen.GAINS[:1])
+    monkeypatch.setattr(localizer.detect, "GAINS", localizer.image.sharpen.GAINS[:1])
     assert detect_targets(f.image, f.camera) == []
 
 
 def test_unsharp_copies_blur_once_and_match_unsharp():
     rng = np.random.default_rng(3)
     img = rng.integers(0, 256, (48, 64), dtype=np.uint8)
-    copies = list(localizer.sharpen.unsharp_copies(img, 2.0, (1.0, 2.0)))
+    copies = list(localizer.image.sharpen.unsharp_copies(img, 2.0, (1.0, 2.0)))
     assert [np.array_equal(c, unsharp(img, 2.0, a)) for c, a in zip(copies, (1.0, 2.0))] == [True, True]

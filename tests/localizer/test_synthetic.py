@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from localizer import TargetPose
-from localizer.synthetic import quad_coverage, in_envelope, render_reflectance, target_outline
+from localizer.tools.synthetic import quad_coverage, in_envelope, render_reflectance, target_outline
 
 
 def testquad_coverage_is_exact_area():

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from localizer import Camera, TargetSpec, detect_targets
-from localizer.edges import EdgeMeasurements
-from localizer.synthetic import pose_at_column, render_frame
-from localizer.thesis_edges import height_sign
-from localizer.thesis_points import THESIS_POINTS, reproduce_thesis
+from localizer.measure.edges import EdgeMeasurements
+from localizer.tools.synthetic import pose_at_column, render_frame
+from localizer.thesis.edges import height_sign
+from localizer.thesis.points import THESIS_POINTS, reproduce_thesis
 
 METHODS = ("thesis_method", "exact_method")
 
@@ -81,7 +81,7 @@ def test_height_sign_rule():
 def test_unsure_sign_is_ambiguous():
     """Measurements without a measured height difference (or within its noise) whose two
     roots differ in sign carry the roots' spread in the variance of alpha."""
-    from localizer.thesis_pose import thesis_pose
+    from localizer.thesis.pose import thesis_pose
 
     cam = Camera.thesis(50.0)
     edges = np.array([230.0, 255.0, 280.0, 305.0])

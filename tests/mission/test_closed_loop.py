@@ -11,7 +11,7 @@ from agvsim.analysis.evaluate import FLOORS, run_metrics
 from agvsim.loop.mission import MissionConfig, run_mission
 from agvsim.sensors import GeometricNoise, GeometricSource, RenderedSource, SimObservation, VisionConfig, targets_from_map
 from agvsim.world import load_map
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 
 # The corridor's own recommended mount (maps/corridor.yaml: right flank, looking 30° left).
 CORRIDOR_VISION = VisionConfig()

@@ -10,7 +10,7 @@ import pytest
 
 from agvsim.sensors.render.placement import vehicle_pose_for_target
 from agvsim.sensors.render.renderer import RenderConditions
-from localizer.geometry import TargetPose
+from localizer.model.geometry import TargetPose
 
 pytestmark = pytest.mark.render
 

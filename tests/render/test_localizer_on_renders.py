@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from localizer.thesis_points import THESIS_POINTS
+from localizer.thesis.points import THESIS_POINTS
 from agvsim.sensors.render.placement import vehicle_pose_for_target
 from agvsim.sensors.render.renderer import RenderConditions
 from localizer import detect_targets

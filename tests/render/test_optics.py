@@ -64,7 +64,7 @@ def test_lens_distortion_is_applied_and_undone_by_the_localizer(hall, mount, gl_
     assert obs[0].distance == pytest.approx(t.distance, rel=0.01)
     assert math.degrees(abs(obs[0].alpha - t.alpha)) < 1.5
     # the distorted frame's truth corners are where the camera model puts them
-    from localizer.geometry import TargetPose
+    from localizer.model.geometry import TargetPose
 
     pose = TargetPose(t.distance, t.beta, t.alpha, t.height)
     b, hh = 0.075, 0.075

@@ -18,8 +18,8 @@ import pytest
 from agvsim.sensors.render.placement import vehicle_pose_for_target
 from agvsim.sensors.render.renderer import CameraRenderer, RenderConditions
 from localizer import Camera
-from localizer.geometry import TargetPose
-from localizer.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE
+from localizer.model.geometry import TargetPose
+from localizer.tools.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE
 
 #: (lens mm, d m, alpha deg, beta deg), as tests/render/test_geometry.py
 POSES = [

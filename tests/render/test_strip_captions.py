@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.annotation import glyph_height
+from localizer.tools.annotation import glyph_height
 
 
 @pytest.fixture(scope="module")

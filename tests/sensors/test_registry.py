@@ -59,5 +59,5 @@ def test_vision_config_validates_its_fields():
         VisionConfig(focal_mm=25.0)
     with pytest.raises(ValueError, match="VisionConfig.detector must be one of thesis, exact"):
         VisionConfig(detector="fast")
-    with pytest.raises(ValueError, match="VisionConfig.mount must be a localizer.mount.CameraMount"):
+    with pytest.raises(ValueError, match="VisionConfig.mount must be a localizer.model.mount.CameraMount"):
         VisionConfig(mount=(0.4, 0.0, 1.2, 0.0))

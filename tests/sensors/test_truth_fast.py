@@ -11,8 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from localizer.camera import Camera
-from localizer.geometry import TargetPose
+from localizer.model.camera import Camera
+from localizer.model.geometry import TargetPose
 from agvsim.sensors.render.mount import CameraPose, level_rotation
 from agvsim.sensors.render.strip import route_poses
 from agvsim.sensors.render.truth import (MAX_ALPHA, MIN_BAR_PX, MIN_ROWS, NEAR, OCCLUSION_GRID, TRUTH_COLUMNS,

@@ -11,7 +11,7 @@ import pytest
 import agvsim
 from agvsim.world import (Map, MapError, MapTarget, Wall, load_map, map_from_dict,
                               maps_dir, shipped_maps)
-from localizer.target import TargetSpec
+from localizer.model.target import TargetSpec
 
 #: A 10 x 6 m room whose south wall is a polyline: east along y = 0, then north-east.
 ROOM = """

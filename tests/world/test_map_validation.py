@@ -429,7 +429,7 @@ def _with_mount(tmp_path, mount_yaml: str):
 
 
 def test_camera_mount_is_read_and_defaults_to_forward_looking(tmp_path):
-    from localizer.mount import CameraMount
+    from localizer.model.mount import CameraMount
 
     m = load_map(_with_mount(tmp_path, "{forward: 0.1, lateral: -0.2, height: 1.0, yaw: 0.5}"))
     assert m.camera_mount == CameraMount(forward=0.1, lateral=-0.2, height=1.0, yaw=0.5)

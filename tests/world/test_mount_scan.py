@@ -9,7 +9,7 @@ import pytest
 from agvsim.analysis.mount_scan import candidate_mounts, scan_mounts
 from agvsim.cli import main
 from agvsim.world import load_map
-from localizer.mount import CameraMount
+from localizer.model.mount import CameraMount
 
 
 @pytest.fixture(scope="module")

@@ -152,7 +152,7 @@ def _store_geometry(px, i, t, width, height, table):
 @jit
 def image_geometry(px, rows, width, height, table):
     """The image geometry of targets from their projected points (any projection: the
-    distorted one is NumPy's, :meth:`localizer.camera.Camera.project`).
+    distorted one is NumPy's, :meth:`localizer.model.camera.Camera.project`).
 
     Args:
         px: ``(m, 16, 2)`` float64 pixel x, y of each target's active-area corners TL, TR, BR, BL

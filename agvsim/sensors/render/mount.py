@@ -1,10 +1,10 @@
-"""The camera's pose in the map for one frame (the mount itself is :class:`localizer.mount.CameraMount`).
+"""The camera's pose in the map for one frame (the mount itself is :class:`localizer.model.mount.CameraMount`).
 
 Frames:
 
 * map: x east, y north, z up (m); vehicle pose ``(x, y, θ)``, θ CCW from +x.
 * vehicle: x forward, y left, z up, origin at the vehicle's centre on the floor.
-* camera (OpenCV, as in :mod:`localizer.camera`): x right, y down, z forward.
+* camera (OpenCV, as in :mod:`localizer.model.camera`): x right, y down, z forward.
   With no jitter the optical axis is horizontal and image rows are level
   (thesis §3.5 assumption 1).
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from localizer.mount import CameraMount, check_pose
+from localizer.model.mount import CameraMount, check_pose
 
 __all__ = ["CameraMount", "CameraPose", "check_pose", "jitter_rotation", "level_rotation", "rotation_from_vector"]
 

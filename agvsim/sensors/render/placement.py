@@ -13,7 +13,7 @@ from agvsim.sensors.render.mount import CameraMount
 def camera_pose_facing(target, distance: float, alpha: float, beta: float = 0.0) -> tuple[np.ndarray, float]:
     """Lens position ``(2,)`` (m) and heading (rad) of a level camera that sees ``target``
     at horizontal distance ``distance`` (m), bearing ``beta`` and angle ``alpha`` (rad,
-    thesis conventions: see :mod:`localizer.geometry`).
+    thesis conventions: see :mod:`localizer.model.geometry`).
 
     In the camera frame the target normal pointing away from the camera is
     ``(sin α, 0, cos α)``; the map normal faces the camera, so the heading is the

@@ -26,7 +26,7 @@ from agvsim.sensors.render.gl import GLContext
 from agvsim.sensors.render.lighting import Illumination
 from agvsim.sensors.render.mount import CameraPose
 from agvsim.sensors.render.scene import SceneDescription
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 
 __all__ = ["SHADING_STRIDE", "ZFAR", "ZNEAR", "PyrenderBackend"]
 

@@ -23,7 +23,7 @@ from agvsim.sensors.render.ray_records import (Decals, Faces, Floor, FrameScratc
                                                Textures, View)
 from agvsim.sensors.render.scene import SceneDescription
 from agvsim.sensors.render.textures import SURFACE_TILE
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 
 __all__ = ["FLOOR_KEY", "NEAR", "SUBCOLUMNS", "RaycastBackend", "frame_buffers"]
 

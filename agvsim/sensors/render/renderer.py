@@ -30,7 +30,7 @@ import numpy as np
 from localizer.interrupts import deferred_interrupt
 from localizer.numeric import check_number
 
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 from agvsim.sensors.render import sensor as sn
 from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.render.gl import GLContext

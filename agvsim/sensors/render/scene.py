@@ -5,7 +5,7 @@ triangle meshes grouped by texture: the floor, every wall (a box per
 polyline segment, 3 m+ high, its surface look), every obstacle (an extruded
 polygon with a look per kind: racks with shelving uprights, machines and
 pillars with hazard tape, pallets), every target (a quad with the exact
-printed face of its :class:`~localizer.target.TargetSpec`, margin included) and
+printed face of its :class:`~localizer.model.target.TargetSpec`, margin included) and
 procedural distractors on free wall faces (striped signs, barcodes, hazard
 signs, almost-targets). Door frames, shelving uprights and hazard tape are in
 the wall and obstacle textures.

@@ -7,7 +7,7 @@ read noise -> saturation (clip to 0..255) -> 8-bit quantisation. Output is a
 
 Radiance is relative: a white target (reflectance 0.9) on a wall in normal
 light has radiance about 0.9, which :class:`SensorModel`'s default gain maps to
-about 215 grey levels (like ``localizer.synthetic.LIGHTING["normal"]``); the
+about 215 grey levels (like ``localizer.tools.synthetic.LIGHTING["normal"]``); the
 same target in a 2.8x bright zone saturates.
 
 Randomness only from the ``numpy.random.Generator`` passed in.
@@ -21,7 +21,7 @@ import numpy as np
 
 from localizer.numeric import check_number
 
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 from agvsim.sensors.render.mount import rotation_from_vector
 
 

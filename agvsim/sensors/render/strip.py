@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 
 
 def route_poses(world_map, n: int, route: str = "default", mount=None,
@@ -109,7 +109,7 @@ def decoys_in_view(distractors, world_map, camera: Camera, cam_pose) -> list[tup
 
 def _caption(width: int, lines: list[tuple[str, tuple[int, int, int]]]) -> np.ndarray:
     """A dark band ``width`` px wide with one line of text per ``(text, BGR colour)``."""
-    from localizer.annotation import draw_text, text_box
+    from localizer.tools.annotation import draw_text, text_box
 
     step = text_box("Ag", CAPTION_PX, 0)[1] + 4
     band = np.full((6 + step * len(lines), width, 3), 32, np.uint8)
@@ -122,7 +122,7 @@ def _mark_decoys(tile: np.ndarray, decoys, scale: float) -> None:
     """Outline each decoy on ``tile`` and write "decoy" next to it (at the tile's size)."""
     import cv2
 
-    from localizer.annotation import draw_text, text_box
+    from localizer.tools.annotation import draw_text, text_box
 
     for _, px in decoys:
         q = np.round(px * scale).astype(np.int32)

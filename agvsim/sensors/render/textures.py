@@ -14,8 +14,8 @@ import math
 
 import numpy as np
 
-from localizer.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE
-from localizer.target import TargetSpec
+from localizer.tools.synthetic import BLACK_REFLECTANCE, WHITE_REFLECTANCE
+from localizer.model.target import TargetSpec
 
 #: Texels per bar width b of a target texture: at 1 m with the 16 mm lens a bar
 #: (75 mm) spans about 70 px, so 256 texels keep 3.6 texels per pixel, and every

@@ -1,7 +1,7 @@
 """Ground truth of every target in a frame, in the localizer's conventions.
 
 For each map target: the true ``d``, ``α``, ``β`` (thesis conventions, see
-:mod:`localizer.geometry`), measured in the *level* camera frame -- the
+:mod:`localizer.model.geometry`), measured in the *level* camera frame -- the
 horizontal quantities the localizer estimates, unaffected by pitch/roll
 jitter -- and its image geometry (active-area corners TL, TR, BR, BL, the
 bounding box of the printed face) through the *actual* camera (jitter and, if
@@ -19,7 +19,7 @@ and the target coordinates of every point projected (built once per map and cach
 compiled kernel (:mod:`agvsim.sensors.render._truth_kernels`) fills one table per frame
 with every target's level-frame pose and whether it is in front of the lens, the image
 geometry of those in front, and the depth-buffer test of those in view. Only a distorted
-frame's projection is NumPy's (:meth:`localizer.camera.Camera.project`).
+frame's projection is NumPy's (:meth:`localizer.model.camera.Camera.project`).
 """
 from __future__ import annotations
 
@@ -30,8 +30,8 @@ from functools import cached_property
 
 import numpy as np
 
-from localizer.camera import Camera
-from localizer.geometry import TargetPose
+from localizer.model.camera import Camera
+from localizer.model.geometry import TargetPose
 from agvsim.sensors.render._truth_kernels import COLUMNS as TRUTH_COLUMNS
 from agvsim.sensors.render._truth_kernels import (CameraRotation, TargetPoints, TruthParams, blank_table, frame_table, image_geometry,
                                                   occlusion_verdicts, target_poses)
@@ -277,7 +277,7 @@ def frame_truth(world_map, camera: Camera, cam_pose: CameraPose, vehicle_pose, d
     """Ground truth of every target of ``world_map`` seen from ``cam_pose``.
 
     Args:
-        camera: intrinsics (pixel-centre convention of :mod:`localizer.camera`).
+        camera: intrinsics (pixel-centre convention of :mod:`localizer.model.camera`).
         cam_pose: the camera's pose (jitter included).
         vehicle_pose: for the record.
         depth: ``(H * s, W * s)`` float depth buffer (m along the optical axis, 0 = nothing),

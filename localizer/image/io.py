@@ -65,7 +65,7 @@ def read_image_grey(path: str | os.PathLike, max_pixels: int = MAX_IMAGE_PIXELS)
         raise ValueError(f"{name}: the header gives an empty image ({w} x {h} pixels)")
     if w * h > max_pixels:
         raise ValueError(f"{name}: {w} x {h} pixels ({w * h:,}) is more than the limit of {max_pixels:,} "
-                         f"pixels (localizer.io.MAX_IMAGE_PIXELS); not decoded")
+                         f"pixels (localizer.image.io.MAX_IMAGE_PIXELS); not decoded")
     import cv2
 
     try:

@@ -24,7 +24,7 @@ coordinates. A candidate of the coarse level that its finer level does not confi
 reported (lettering that a coarse level blurs into bars); one that is not confirmed on any
 level from its own to the search's is reported as measured on the search level.
 
-Pixel convention (:class:`localizer.camera.Camera`): pixel ``j`` covers ``[j - 0.5, j + 0.5]``;
+Pixel convention (:class:`localizer.model.camera.Camera`): pixel ``j`` covers ``[j - 0.5, j + 0.5]``;
 level ``k``'s pixel ``j`` covers the frame's pixels ``k j .. k j + k - 1``, i.e. frame
 coordinate ``x = k (x_k + 0.5) - 0.5`` (:meth:`Camera.scaled`).
 """
@@ -38,9 +38,9 @@ import numpy as np
 
 from localizer._kernels.area import area_half, area_quarter
 from localizer._kernels.subpixel import rows_blur
-from localizer.camera import Camera
-from localizer.params import DetectorParams
-from localizer.observation import ImageMeasurements, TargetObservation
+from localizer.model.camera import Camera
+from localizer.model.params import DetectorParams
+from localizer.model.observation import ImageMeasurements, TargetObservation
 
 __all__ = ["LEVEL_ROWS", "SIGMA_TARGET", "coarse_factor", "detect_pyramid", "level_image"]
 

@@ -1,6 +1,6 @@
 """Camera calibration from views of a flat chessboard (OpenCV's calibration, Zhang's method).
 
-The result is a :class:`~localizer.camera.Camera` (intrinsics, image size, lens distortion),
+The result is a :class:`~localizer.model.camera.Camera` (intrinsics, image size, lens distortion),
 the camera the localizer needs for real frames: :meth:`Camera.to_opencv_yaml` writes it as the
 file ``agvsim localize --camera`` and :meth:`Camera.from_opencv_yaml` read.
 
@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.camera import Camera
+from localizer.model.camera import Camera
 from localizer.numeric import check_number
 
 __all__ = ["DETECT_SIDE", "DIST_NAMES", "MIN_TILT_SPREAD", "MIN_VIEWS", "Calibration", "board_points", "calibrate_views",
@@ -95,7 +95,7 @@ def find_chessboard(image, cols: int, rows: int, max_side: int = DETECT_SIDE) ->
         max_side: the longer side (px) of the image the board is searched in (whole number >= 64).
     Returns:
         ``(cols * rows, 2)`` float64 array of ``(x, y)`` pixel coordinates (pixel centres at
-        whole numbers, as :mod:`localizer.camera`), in :func:`board_points`' order; or None.
+        whole numbers, as :mod:`localizer.model.camera`), in :func:`board_points`' order; or None.
     Raises:
         ValueError: ``image`` is not a grey uint8 image, or a bad board.
     """

@@ -4,7 +4,7 @@ Frames:
 
 * map: x east, y north, z up (m); vehicle pose ``(x, y, θ)``, θ CCW from +x.
 * vehicle: x forward, y left, z up, origin at the vehicle's centre on the floor.
-* camera (OpenCV, as in :mod:`localizer.camera`): x right, y down, z forward.
+* camera (OpenCV, as in :mod:`localizer.model.camera`): x right, y down, z forward.
   With no jitter the optical axis is horizontal and image rows are level
   (thesis §3.5 assumption 1).
 

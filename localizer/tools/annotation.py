@@ -9,7 +9,7 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.observation import TargetObservation
+from localizer.model.observation import TargetObservation
 
 #: Text height (px, the font's em size) of the labels :func:`annotate` draws: capitals about 10 px.
 LABEL_PX = 14
@@ -136,7 +136,7 @@ def write_debug_images(directory: str, image: np.ndarray, camera, p, stacks, ver
     import cv2
 
     from localizer._kernels.noise import frame_noise
-    from localizer.scan import threshold_lines
+    from localizer.search.scan import threshold_lines
 
     os.makedirs(directory, exist_ok=True)
     rows = np.arange(0, image.shape[0], int(p.coarse_step))

@@ -1,14 +1,14 @@
 """Edge measurements of a verified stack (thesis §4.6): the record both edge detectors return.
 
 Two detectors share the rough geometry of a verified stack
-(:class:`localizer.recognize.Stack`):
+(:class:`localizer.search.recognize.Stack`):
 
-* :func:`localizer.thesis_edges.thesis_edges` -- the thesis's half-pixel rule (§4.6.2);
-* :func:`localizer.subpixel_edges.subpixel_edges` -- gradient-peak centroids, and on
+* :func:`localizer.thesis.edges.thesis_edges` -- the thesis's half-pixel rule (§4.6.2);
+* :func:`localizer.measure.subpixel_edges.subpixel_edges` -- gradient-peak centroids, and on
   saturated blurred targets a clipped-erf edge model.
 
 Both return an :class:`EdgeMeasurements` in undistorted pixel coordinates.
-Coordinates follow :mod:`localizer.camera` (pixel centres at integers).
+Coordinates follow :mod:`localizer.model.camera` (pixel centres at integers).
 """
 from __future__ import annotations
 
@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from localizer._kernels.verify import rough_ends as rough_ends_kernel
-from localizer.camera import Camera
-from localizer.recognize import Stack
+from localizer.model.camera import Camera
+from localizer.search.recognize import Stack
 
 #: the sign of alpha read from the bars' measured height difference is sure (not ambiguous)
 #: when the difference is at least this many standard errors from zero
-#: (:func:`localizer.thesis_edges.height_sign`)
+#: (:func:`localizer.thesis.edges.height_sign`)
 SIGN_SIGMAS = 3.0
 
 
@@ -38,7 +38,7 @@ class EdgeMeasurements:
     drawing. ``height_sign``: the sign of ``h2 - h1`` that chooses the root of eq 4.13
     (§4.2.2; 0 undecided), ``height_difference``: ``(h2 - h1, its sd)`` (px) measured over
     each bar's columns (NaN if not measured); both from
-    :func:`localizer.thesis_edges.thesis_edges`.
+    :func:`localizer.thesis.edges.thesis_edges`.
     """
 
     edges_x: np.ndarray

@@ -1,10 +1,10 @@
 """Pose recovery from edge measurements (thesis §4.1-4.2, Appendix A): the result record.
 
-Two methods: :func:`localizer.thesis_pose.thesis_pose` (the thesis's eqs 4.3-4.13 on the
-half-pixel edges) and :func:`localizer.exact_pose.exact_pose` (perspective-exact least
+Two methods: :func:`localizer.thesis.pose.thesis_pose` (the thesis's eqs 4.3-4.13 on the
+half-pixel edges) and :func:`localizer.measure.exact_pose.exact_pose` (perspective-exact least
 squares over every measured edge). Both return a :class:`PoseEstimate`.
 
-Units: pixels in, metres and radians out. Conventions: :mod:`localizer.geometry`.
+Units: pixels in, metres and radians out. Conventions: :mod:`localizer.model.geometry`.
 Image quantities are converted with the camera's focal lengths instead of the
 thesis's millimetre factors (§4.7): ``x_m / f = (x - cx) / fx``,
 ``h_m / f = h / fy``.

@@ -13,9 +13,9 @@ import math
 import numpy as np
 
 from localizer._kernels.half_pixel import centroid_cols, half_pixel_cols, half_pixel_rows
-from localizer.camera import Camera
-from localizer.edges import EdgeMeasurements, rough_ends, undistort_vertical
-from localizer.recognize import Stack
+from localizer.model.camera import Camera
+from localizer.measure.edges import EdgeMeasurements, rough_ends, undistort_vertical
+from localizer.search.recognize import Stack
 
 
 def thesis_edges(image: np.ndarray, camera: Camera, st: Stack, window: int = 9) -> EdgeMeasurements:
@@ -129,11 +129,11 @@ def height_sign(diff: float, sd: float, centre_diff: float) -> int:
     (+21.9 deg for point 17). ``diff``: that difference measured to a fraction of a pixel,
     averaged over each bar's columns (:func:`bar_height_difference`); its sign is taken,
     within its noise too, being the finer measurement of the same heights (whether it is
-    beyond its noise, :data:`localizer.edges.SIGN_SIGMAS` standard errors ``sd``, is
-    :attr:`localizer.edges.EdgeMeasurements.height_sign_sure`: otherwise the estimate is
+    beyond its noise, :data:`localizer.measure.edges.SIGN_SIGMAS` standard errors ``sd``, is
+    :attr:`localizer.measure.edges.EdgeMeasurements.height_sign_sure`: otherwise the estimate is
     ambiguous). Where it was not measured (NaN) or is 0: the sign of ``centre_diff``, the
     half-pixel heights' difference at the bar centres (the thesis's own measurement),
-    otherwise 0 (the tie rule of :func:`localizer.thesis_pose.thesis_alpha`)."""
+    otherwise 0 (the tie rule of :func:`localizer.thesis.pose.thesis_alpha`)."""
     if math.isfinite(diff) and diff != 0.0:
         return 1 if diff > 0 else -1
     if abs(centre_diff) < 1e-9:

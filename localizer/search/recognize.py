@@ -4,7 +4,7 @@ A candidate target is a *stack*: consecutive image rows each holding a
 matching bar-gap-bar triple. Work per frame, in order of cost:
 
 1. coarse scan: every ``N``-th line thresholded, run-length coded and searched
-   for triples in one batch (:mod:`localizer.scan`);
+   for triples in one batch (:mod:`localizer.search.scan`);
 2. every triple's grey levels on its own line: contrast between the runs,
    light margins, no grating (the cheap part of §4.5.2), then the minimum
    height and aspect tests in advance: 11 pixels across each surviving hit on
@@ -30,10 +30,10 @@ import numpy as np
 
 from localizer._kernels import search
 from localizer._kernels.records import REASONS, SearchSettings, as_record
-from localizer.camera import Camera
-from localizer.params import DetectionStats, DetectorParams
-from localizer.scan import noise_contrast, run_test
-from localizer.target import TargetSpec
+from localizer.model.camera import Camera
+from localizer.model.params import DetectionStats, DetectorParams
+from localizer.search.scan import noise_contrast, run_test
+from localizer.model.target import TargetSpec
 
 
 #: ``DetectionStats.rejected`` keys of :data:`localizer._kernels.records.REASONS`, in order

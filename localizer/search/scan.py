@@ -20,7 +20,7 @@ import numpy as np
 
 from localizer._kernels import scan as kernels
 from localizer._kernels.records import RunTest
-from localizer.params import DetectorParams
+from localizer.model.params import DetectorParams
 
 
 def threshold_lines(lines: np.ndarray, p: DetectorParams, window: int, noise: float = 0.0) -> np.ndarray:

@@ -46,7 +46,7 @@ class TargetObservation:
         beta: β (rad), bearing of the target centre, > 0 right of the optical axis.
         alpha: α (rad), target plane vs image plane; > 0 when the target's right edge
             is nearer; α = β when the target squarely faces the camera
-            (see :mod:`localizer.geometry`).
+            (see :mod:`localizer.model.geometry`).
         z: range of the target centre along the optical axis (m).
         x: lateral camera-frame position of the target centre (m, right positive).
         height: camera-frame y of the target centre (m, down positive; NaN for "thesis").
@@ -126,7 +126,7 @@ def observation_of(edges: tuple, cxs: tuple, top: tuple, bottom: tuple, rows: tu
 
 
 def pose_fields(est) -> tuple:
-    """The pose of :func:`observation_of` from a :class:`localizer.pose.PoseEstimate`."""
+    """The pose of :func:`observation_of` from a :class:`localizer.measure.pose.PoseEstimate`."""
     return (float(est.distance), float(est.beta), float(est.alpha), float(est.z), float(est.x), float(est.height),
             np.asarray(est.covariance, float), tuple(float(a) for a in est.alpha_candidates), bool(est.ambiguous),
             float(est.edge_bias), float(est.rms))

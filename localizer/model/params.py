@@ -78,7 +78,7 @@ class DetectorParams:
     threshold_window: int | None = None  # px, local midway-threshold window; 33 at 512 columns
     global_threshold: float = 128.0  # grey level used when a line has little contrast
     # grey levels within `contrast_window` px that switch to midway threshold; on a noisy frame at
-    # least what its noise reaches in a threshold window (localizer.scan.noise_contrast)
+    # least what its noise reaches in a threshold window (localizer.search.scan.noise_contrast)
     local_contrast: float = 30.0
     contrast_window: int = 5  # px, thesis "area of five pixels"
     # --- feature detection (§4.5.1)
@@ -102,7 +102,7 @@ class DetectorParams:
     edge_window: int = 9  # px, thesis neighbourhood of a rough edge
     # --- exact pose covariance
     edge_sigma_floor: float = 0.05  # px, model error added to every averaged edge position
-    # --- whole-target photometric refinement (localizer.photometric, undistorted cameras):
+    # --- whole-target photometric refinement (localizer.measure.photometric, undistorted cameras):
     # "auto" refines a target whose edge-based pose falls short: range sd above `refine_range_sd`
     # of the range or orientation sd above `refine_alpha_sd` (small, far, dim or strongly
     # blurred targets; a saturated one from several starts); "clipped" every target whose bright
@@ -126,13 +126,13 @@ class DetectorParams:
     response: str = "auto"
     # --- large frames (at least 2 x 480 rows): True searches a coarse level (area-averaged to about
     # 480 rows) and measures each target on a crop of the finest level where its blur is at most
-    # 2 px (localizer.pyramid; coarser than the search's for a strongly blurred target): the thesis
+    # 2 px (localizer.image.pyramid; coarser than the search's for a strongly blurred target): the thesis
     # camera's 3 px of blur at 2448 x 2048 (14 px) 40/40 found against 25/40 at the frame's own
     # resolution, at 1280 x 1024 (7.5 px) a range error of 0.22 % mean against 1.38 %;
     # False: the whole frame at its own resolution
     pyramid: bool = True
     # --- blurred frames: where the "exact" search of a frame (or of a large frame's coarse level or
-    # crop) finds no target, it searches again an unsharp-masked copy of it (localizer.sharpen:
+    # crop) finds no target, it searches again an unsharp-masked copy of it (localizer.image.sharpen:
     # Gaussian sd `sharpen_sigma` px, gain `sharpen_amount`, then twice that: sharpen.GAINS) and
     # measures what that finds on the frame's own pixels (kept if those edges fit a target,
     # detect.SHARPENED_MAX_RMS): steep targets under the envelope's 3 px of blur, whose narrow runs

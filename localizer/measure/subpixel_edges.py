@@ -4,7 +4,7 @@ The gradient peak located by its centroid inside a symmetric window re-centred o
 estimate (two passes). For box-filter pixels the centroid of the differences of a
 blurred step is unbiased for any symmetric blur; clipping (saturation) and the
 truncation by nearby edges shift all edges towards their dark side by one common
-amount, which the exact pose fit estimates (:mod:`localizer.exact_pose`). On saturated
+amount, which the exact pose fit estimates (:mod:`localizer.measure.exact_pose`). On saturated
 (clipped) targets with some blur the edges are then re-measured by a clipped,
 blurred-step model whose blur and levels are shared by all edges of the target
 (:mod:`localizer._kernels.clipped`). Kernels: :mod:`localizer._kernels.subpixel`.
@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from localizer._kernels.subpixel import edge_rows, horizontal_stage, line_fits, subpixel, vertical_stage
-from localizer.camera import Camera
-from localizer.edges import EdgeMeasurements, rough_ends, undistort_vertical
-from localizer.recognize import Stack
+from localizer.model.camera import Camera
+from localizer.measure.edges import EdgeMeasurements, rough_ends, undistort_vertical
+from localizer.search.recognize import Stack
 
 
 def edge_inputs(image: np.ndarray, st: Stack) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -41,7 +41,7 @@ def subpixel_edges(image: np.ndarray, camera: Camera, st: Stack) -> EdgeMeasurem
     For box-filter pixels the centroid of the differences of a blurred step is
     unbiased for any symmetric blur. Clipping (saturation) moves every edge
     towards its dark side, by an amount that the exact pose fit estimates as a
-    common ``delta`` (:mod:`localizer.exact_pose`); what is left is a per-edge part that
+    common ``delta`` (:mod:`localizer.measure.exact_pose`); what is left is a per-edge part that
     depends on the edge's pixel phase (up to about +-0.3 px for sharp saturated
     edges, where the clipped pixels hide where in them the edge lies), which the
     covariance allows for. When the target is clipped and blurred (fitted blur

@@ -1,6 +1,6 @@
 """Whole-target photometric pose refinement (saturated, small, far or dim targets).
 
-The edge-based pose (:mod:`localizer.subpixel_edges`, :mod:`localizer.exact_pose`) measures each edge on
+The edge-based pose (:mod:`localizer.measure.subpixel_edges`, :mod:`localizer.measure.exact_pose`) measures each edge on
 its own and then fits the pose to eight edge positions. Where the edges are poor that
 throws information away. On a saturated frame the bright side of every edge is clipped at 255, so an edge
 measured on its own is known only to lie somewhere inside its clipped pixel (up to
@@ -54,7 +54,7 @@ pixels that meet there.
 What the pixels cannot tell stays untold: on small, sharp, saturated targets the cost
 can be flat along a combination of range, orientation and the (clipped, unseen) bright
 level, and the fit then lands anywhere in that valley. The caller therefore keeps the
-edge-based covariance (:func:`localizer.target_finish.photometric_pose`).
+edge-based covariance (:func:`localizer.measure.target_finish.photometric_pose`).
 
 Lens distortion is not modelled: the refinement applies to undistorted cameras only.
 """

@@ -17,8 +17,8 @@ import numpy as np
 
 from localizer._kernels import frame
 from localizer._kernels.records import FusedColumn, FusedTarget, MeasureSettings, as_record
-from localizer.params import DetectionStats, DetectorParams
-from localizer.recognize import add_counts, search_settings
+from localizer.model.params import DetectionStats, DetectorParams
+from localizer.search.recognize import add_counts, search_settings
 
 __all__ = ["FramePlan", "FrameTargets", "detect_frame", "frame_plan"]
 

@@ -4,7 +4,7 @@ synthetic frames.
 :data:`THESIS_POINTS` holds the 18 points of Tables 5.1 (16 mm lens) and 5.2 (50 mm):
 the measured distance and orientation of the target and what the thesis computed
 from its images (Tables 5.3-5.4 give the same points' errors). :func:`reproduce_thesis`
-renders each point as an exact synthetic frame (:mod:`localizer.synthetic`) and runs both
+renders each point as an exact synthetic frame (:mod:`localizer.tools.synthetic`) and runs both
 methods of :func:`localizer.detect_targets` on it; ``agvsim reproduce thesis`` prints it.
 """
 from __future__ import annotations
@@ -38,7 +38,7 @@ def reproduce_thesis(seed: int = 0, noise: float = 1.0, blur: float = 0.5, colum
     import numpy as np
 
     from localizer import Camera, TargetSpec, detect_targets
-    from localizer.synthetic import pose_at_column, render_frame
+    from localizer.tools.synthetic import pose_at_column, render_frame
 
     rng = np.random.default_rng(seed)
     target = TargetSpec()

@@ -1,6 +1,6 @@
 """The perspective-exact pose (Appendix A) by weighted Gauss-Newton over every measured edge.
 
-Units: pixels in, metres and radians out. Conventions: :mod:`localizer.geometry`.
+Units: pixels in, metres and radians out. Conventions: :mod:`localizer.model.geometry`.
 Kernels: :mod:`localizer._kernels.exact_pose` (the model and the fit) and
 :mod:`localizer._kernels.measure` (edges, target test and fit in one call).
 """
@@ -14,10 +14,10 @@ import numpy as np
 from localizer._kernels import measure
 from localizer._kernels.exact_pose import alpha_a14, fit
 from localizer._kernels.records import ExactSettings, FitStatus, MeasuredEdges, PoseFit, as_record
-from localizer.camera import Camera
-from localizer.edges import EdgeMeasurements
-from localizer.pose import PoseEstimate
-from localizer.target import TargetSpec
+from localizer.model.camera import Camera
+from localizer.measure.edges import EdgeMeasurements
+from localizer.measure.pose import PoseEstimate
+from localizer.model.target import TargetSpec
 
 __all__ = ["alpha_a14", "exact_measure", "exact_measure_lut", "exact_pose"]
 
@@ -65,7 +65,7 @@ def _estimate(f: PoseFit) -> PoseEstimate:
 
 def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sigma_floor: float,
                   width_tolerance: float, width_slack: float, min_rows: float, iterations: int = 8):
-    """:func:`localizer.subpixel_edges.subpixel_edges`, the target test of
+    """:func:`localizer.measure.subpixel_edges.subpixel_edges`, the target test of
     :func:`localizer._kernels.target_test.makes_target` and :func:`exact_pose` of the
     verified stack ``st``, in one compiled call (:func:`localizer._kernels.measure.exact_measure`),
     for a camera without lens distortion: the

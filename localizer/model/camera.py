@@ -227,7 +227,7 @@ class Camera:
 
     def binned(self, k: int) -> "Camera":
         """The camera of this one's image area-averaged over ``k x k`` blocks (a pyramid level,
-        :func:`localizer.pyramid.level_image`): its ``(width // k) k`` first columns and
+        :func:`localizer.image.pyramid.level_image`): its ``(width // k) k`` first columns and
         ``(height // k) k`` first rows, level pixel ``j`` covering pixels ``k j .. k j + k - 1``
         (focal lengths divided by ``k``, principal point ``(c + 0.5) / k - 0.5``). Built as
         :meth:`cropped` builds its cameras."""

@@ -11,10 +11,10 @@ import math
 import numpy as np
 
 from localizer._kernels.clipped import SIGMA_BLURRED
-from localizer.camera import Camera
-from localizer.params import DetectorParams
-from localizer.photometric import refine_pose
-from localizer.target import TargetSpec
+from localizer.model.camera import Camera
+from localizer.model.params import DetectorParams
+from localizer.measure.photometric import refine_pose
+from localizer.model.target import TargetSpec
 
 __all__ = ["BLURRED_ALPHA_SHARE", "MAX_ALPHA", "MAX_FIT_RMS", "PHOTOMETRIC_GATE", "SRGB_TO_LINEAR", "finish",
            "linear_grey", "photometric_pose", "window_parts"]
@@ -84,7 +84,7 @@ def linear_grey(g: float) -> float:
 
 
 def photometric_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, est, wide: bool, blur: float):
-    """The edge-based pose ``est`` refined on the target's pixels (:mod:`localizer.photometric`),
+    """The edge-based pose ``est`` refined on the target's pixels (:mod:`localizer.measure.photometric`),
     from several starts when ``wide``.
 
     The edge-based covariance is kept: on clipped targets the censored pixels make the fit's

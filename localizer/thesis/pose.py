@@ -1,6 +1,6 @@
 """The thesis's pose (§4.1-4.2): eqs 4.3, 4.4, 4.5 and 4.12-4.15 on the half-pixel edges.
 
-Units: pixels in, metres and radians out. Conventions: :mod:`localizer.geometry`.
+Units: pixels in, metres and radians out. Conventions: :mod:`localizer.model.geometry`.
 Image quantities are converted with the camera's focal lengths instead of the
 thesis's millimetre factors (§4.7): ``x_m / f = (x - cx) / fx``,
 ``h_m / f = h / fy``.
@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 
-from localizer.camera import Camera
-from localizer.edges import EdgeMeasurements
-from localizer.pose import PoseEstimate
-from localizer.target import TargetSpec
+from localizer.model.camera import Camera
+from localizer.measure.edges import EdgeMeasurements
+from localizer.measure.pose import PoseEstimate
+from localizer.model.target import TargetSpec
 
 
 def thesis_alpha(ratio: float, beta_p: float, sign: int) -> tuple[float, tuple[float, float], bool]:
@@ -25,7 +25,7 @@ def thesis_alpha(ratio: float, beta_p: float, sign: int) -> tuple[float, tuple[f
         beta_p: beta' (rad), the bearing of the image mid-point m (eq 4.4).
         sign: +1 if the right bar is taller (right edge nearer, alpha > 0), -1 if
             the left bar is taller, 0 if undecided
-            (:func:`localizer.thesis_edges.height_sign`: the subpixel heights averaged
+            (:func:`localizer.thesis.edges.height_sign`: the subpixel heights averaged
             over each bar's columns, else the half-pixel heights at the bar centres).
     Returns:
         ``(alpha, (alpha1, alpha2), ambiguous)``. ``alpha1 = beta' + phi`` (4.14),

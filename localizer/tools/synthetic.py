@@ -19,10 +19,10 @@ from typing import Sequence
 
 import numpy as np
 
-from localizer.camera import Camera
-from localizer.geometry import TargetPose, bar_edges_u
+from localizer.model.camera import Camera
+from localizer.model.geometry import TargetPose, bar_edges_u
 from localizer.numeric import check_number
-from localizer.target import TargetSpec
+from localizer.model.target import TargetSpec
 
 SUBSAMPLES = 16  # column samples per pixel for slanted edges
 
