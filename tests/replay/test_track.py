@@ -181,3 +181,69 @@ def test_an_export_into_a_log_folder_is_refused(tmp_path):
     (tmp_path / "frames.csv").write_text("t,file\n")
     with pytest.raises(ValueError, match="holds a logged drive already"):
         FolderWriter(tmp_path)
+
+
+@pytest.mark.slow
+def test_a_sqlite3_bag_of_compressed_frames_and_wheel_joints(drive, tmp_path, capfd):
+    """The other message types: CompressedImage frames and JointState wheel positions (ticks), in
+    a sqlite3 bag, made here from the exported folder's first 30 s."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from agvsim.replay.drive import load_vehicle
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    log = drive / "log"
+    vehicle = load_vehicle(log / "vehicle.yaml")
+    per_metre = 1.0 / 0.1  # wheel angle (rad) per metre of a 0.1 m wheel
+    odo = np.loadtxt(log / "odometry.csv", delimiter=",", skiprows=1)
+    odo = odo[odo[:, 0] <= 30.0]
+    dt = np.diff(odo[:, 0], prepend=odo[0, 0])
+    left = np.cumsum((odo[:, 1] - 0.5 * vehicle.track_width * odo[:, 2]) * dt) * per_metre
+    right = np.cumsum((odo[:, 1] + 0.5 * vehicle.track_width * odo[:, 2]) * dt) * per_metre
+    truth = np.loadtxt(log / "truth.csv", delimiter=",", skiprows=1)
+    with open(log / "frames.csv", newline="") as f:
+        frames = [(float(t), name) for t, name in list(csv.reader(f))[1:] if float(t) <= 30.0]
+
+    def header(t):
+        ns = int(round(t * 1e9))
+        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+                                        frame_id="x"), ns
+
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        cams = w.add_connection("/front/compressed", "sensor_msgs/msg/CompressedImage", typestore=ts)
+        wheels = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+        gt = w.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=ts)
+        for t, name in frames:
+            h, ns = header(t)
+            png = np.frombuffer(cv2.imencode(".png", cv2.imread(str(log / "frames" / name), cv2.IMREAD_UNCHANGED))[1],
+                                np.uint8)
+            msg = T["sensor_msgs/msg/CompressedImage"](header=h, format="png", data=png)
+            w.write(cams, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+        for k in range(len(odo)):
+            h, ns = header(odo[k, 0])
+            msg = T["sensor_msgs/msg/JointState"](header=h, name=["wheel_left_joint", "wheel_right_joint"],
+                                                  position=np.array([left[k], right[k]]), velocity=np.zeros(2),
+                                                  effort=np.zeros(2))
+            w.write(wheels, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+        for row in truth[truth[:, 0] <= 30.0]:
+            h, ns = header(row[0])
+            q = T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=float(np.sin(row[3] / 2)), w=float(np.cos(row[3] / 2)))
+            pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=row[1], y=row[2], z=0.0),
+                                               orientation=q)
+            zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+            msg = T["nav_msgs/msg/Odometry"](
+                header=h, child_frame_id="base", pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
+                                                                 covariance=np.zeros(36)))
+            w.write(gt, ns, ts.serialize_cdr(msg, msg.__msgtype__))
+    ticks = tmp_path / "vehicle.yaml"
+    from dataclasses import replace
+
+    replace(vehicle, ticks_per_metre=per_metre).to_yaml(ticks)
+    summary = _track(capfd, bag, tmp_path / "t", "--camera", str(log / "camera.yaml"), "--vehicle", str(ticks),
+                     "--image-topic", "/front/compressed", "--odometry-topic", "/joint_states")
+    assert summary["frames_used"] == len(frames) and summary["frames_refused"] == 0
+    assert summary["position_rmse_m"] <= 0.02 and summary["position_max_m"] <= 0.10, summary
