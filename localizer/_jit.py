@@ -63,8 +63,8 @@ fast_jit = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy"
 #: printed on stderr (once per process) when a kernel of this project is compiled rather than
 #: loaded from the cache: the first call of a fresh install waits for it
 COMPILE_NOTICE = ("compiling the localizer's and simulator's numba kernels for this machine: the first "
-                  "run waits a minute or two, later runs load them from the cache "
-                  "(`agvsim warmup` or `python -m localizer.warmup` compiles them ahead)")
+                  "run waits one to two minutes of a core (most of it LLVM), later runs load them from the cache "
+                  "in about a second (`agvsim warmup` or `python -m localizer.warmup` compiles them ahead)")
 _PACKAGES = ("localizer.", "agvsim.", "envs.")
 
 
