@@ -41,10 +41,9 @@ import threading
 
 import numba
 import numba.core.event
-import numba.extending
 
 
-__all__ = ["COMPILE_NOTICE", "CompileCounter", "fast_jit", "inline", "jit", "prefetch", "quiet_compile_notice"]
+__all__ = ["COMPILE_NOTICE", "CompileCounter", "fast_jit", "inline", "jit", "quiet_compile_notice"]
 
 #: the decorator of every compiled kernel (module docstring)
 jit = numba.njit(cache=True, nogil=True)
@@ -60,48 +59,12 @@ inline = numba.njit(cache=True, nogil=True, inline="always")
 fast_jit = numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 
 
-# ------------------------------------------------------------------ prefetch
-@numba.extending.intrinsic
-def prefetch(typingctx, a, i):
-    """Ask the processor to load the cache line of ``a[i]`` (``a`` a 1-D C-contiguous array, ``i``
-    an integer; LLVM's ``llvm.prefetch``: a read, into every cache level). A hint only: nothing
-    is read into a variable, an address outside ``a`` does not fault, the results are unchanged.
-
-    For a kernel that streams through a frame larger than the caches (a camera's frame written by
-    its driver is in memory, not in a cache): the hardware's prefetchers follow a few sequential
-    streams but keep too few lines in flight to reach the memory's bandwidth from one core;
-    asking for the next rows' lines while this row is computed does (``area_quarter``: a
-    2448 x 2048 frame from memory in 0.49 ms instead of 0.67, 0.035 ms more when it is in the cache).
-    """
-    if not (isinstance(a, numba.types.Array) and a.ndim == 1 and a.layout == "C"
-            and isinstance(i, numba.types.Integer)):
-        return None
-
-    def codegen(context, builder, signature, args):
-        from llvmlite import ir
-        from numba.core import cgutils
-
-        aty = signature.args[0]
-        ary = context.make_array(aty)(context, builder, value=args[0])
-        index = context.cast(builder, args[1], signature.args[1], numba.types.intp)
-        ptr = cgutils.get_item_pointer(context, builder, aty, ary, [index])
-        ptr = builder.bitcast(ptr, ir.IntType(8).as_pointer())
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
-        fn = builder.module.declare_intrinsic("llvm.prefetch", [ptr.type], fnty)
-        # (read, locality 3: keep in every level, data cache)
-        builder.call(fn, [ptr, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
-        return context.get_dummy_value()
-
-    return numba.types.void(a, i), codegen
-
-
 # ------------------------------------------------------------------ first compilation
 #: printed on stderr (once per process) when a kernel of this project is compiled rather than
 #: loaded from the cache: the first call of a fresh install waits for it
 COMPILE_NOTICE = ("compiling the localizer's and simulator's numba kernels for this machine: the first "
-                  "run waits a minute or two, later runs load them from the cache "
-                  "(`agvsim warmup` or `python -m localizer.warmup` compiles them ahead)")
+                  "run waits one to two minutes of a core (most of it LLVM), later runs load them from the cache "
+                  "in about a second (`agvsim warmup` or `python -m localizer.warmup` compiles them ahead)")
 _PACKAGES = ("localizer.", "agvsim.", "envs.")
 
 

@@ -12,8 +12,8 @@ from localizer._kernels.records import FrameStatus
 from localizer._kernels.subpixel import edge_rows, rows_blur
 from localizer._kernels.target_test import makes_target
 from localizer.model.camera import Camera
-from localizer.measure.exact_pose import exact_measure, exact_measure_lut, exact_pose
-from localizer.measure.fused import FrameTargets, detect_frame, frame_plan
+from localizer.measure.exact_pose import ExactSettings, exact_measure, exact_measure_lut, exact_pose
+from localizer.measure.fused import EdgeChecks, FrameTargets, detect_frame, frame_plan
 from localizer.interrupts import deferred_interrupt
 from localizer.numeric import check_choice
 from localizer.model.observation import TargetObservation, observation_of, pose_fields
@@ -196,10 +196,9 @@ def _search_measure(img: np.ndarray, search_img: np.ndarray, camera: Camera, p: 
     found = None
     if method == "exact" and not camera.has_distortion and not p.debug_dir:
         try:  # the common path, in one compiled call
-            found = detect_frame(img, frame_plan(p, camera.fx, camera.fy, camera.cx, camera.cy, target.bar_width,
-                                                 target.bar_height, target.margin, ENCODED_SHIFT, MAX_SHIFT_SHARE,
-                                                 MAX_ALPHA, MAX_FIT_RMS, CLIPPED_FLOOR), SRGB_TO_LINEAR, st,
-                                 None if search_img is img else search_img)
+            plan = frame_plan(p, camera.intrinsics, target.constants,
+                              EdgeChecks(ENCODED_SHIFT, MAX_SHIFT_SHARE, MAX_ALPHA, MAX_FIT_RMS, CLIPPED_FLOOR))
+            found = detect_frame(img, plan, SRGB_TO_LINEAR, st, None if search_img is img else search_img)
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, FloatingPointError):
             found = None  # a degenerate measurement: step by step, each target on its own
     if found is not None:
@@ -328,7 +327,7 @@ def _edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: f
         est = exact_pose(m, camera, target, v.positive, floor) if _makes_target(edges, top, bot, p) else None
         return edges, cxs, top, bot, est
     # one compiled call
-    return exact_measure(img, camera, target, v, floor, p.width_tolerance, p.width_slack, p.min_rows)
+    return exact_measure(img, camera, target, v, _exact_settings(floor, p))
 
 
 def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, floor: float, p: DetectorParams):
@@ -346,9 +345,14 @@ def _linear_edges_pose(img: np.ndarray, camera: Camera, target: TargetSpec, v, f
         window = cv2.LUT(img[box[0]:box[1], box[2]:box[3]], SRGB_TO_LINEAR)
         cam, lv = window_parts(camera, v, box)
         return _edges_pose(window, cam, target, lv, floor, p), window, box, (cam, lv)
-    *found, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, camera, target, v, floor, p.width_tolerance,
-                                       p.width_slack, p.min_rows)
+    *found, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, camera, target, v, _exact_settings(floor, p))
     return tuple(found), window, box, None
+
+
+def _exact_settings(floor: float, p: DetectorParams) -> ExactSettings:
+    """The compiled measurement's settings: per-edge error floor ``floor`` (px), 8 Gauss-Newton
+    iterations, the target test's tolerances of ``p``."""
+    return ExactSettings(floor, 8, p.width_tolerance, p.width_slack, p.min_rows)
 
 
 def _linear_box(img: np.ndarray, v) -> tuple[int, int, int, int]:

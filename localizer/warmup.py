@@ -8,8 +8,10 @@ An installer, a container build or a new worker runs this once, so that no user'
 frame waits.
 
 :data:`PARTS` names the pieces (each a detection on a synthetic frame that takes every path
-its method has); :func:`warm` compiles one in this process, the command line all of them.
-``agvsim warmup`` compiles these and the simulator's kernels, in parallel processes.
+its method has, or the kernels several methods share); :func:`warm` compiles one in this
+process, the command line all of them. ``agvsim warmup`` compiles these and the simulator's
+kernels, in parallel processes; a part of :data:`AFTER` starts once the parts whose kernels it
+calls have cached them, so that no kernel is compiled in two processes.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import math
 import sys
 import time
 
-__all__ = ["PARTS", "compile_part", "warm"]
+__all__ = ["AFTER", "PARTS", "compile_part", "warm"]
 
 
 def _frame():
@@ -28,9 +30,38 @@ def _frame():
     return camera, render_frame(camera, pose_at_column(camera, 3.0, math.radians(20.0)))
 
 
+def edges() -> None:
+    """The search (:func:`localizer._kernels.search.recognize`) and the measurement of a verified
+    stack (:func:`localizer._kernels.measure.measure`, on the frame's pixels and on a window
+    linearized through the sRGB inverse): the kernels the ``"exact"`` and the thesis method share."""
+    from localizer.detect import SRGB_TO_LINEAR
+    from localizer.measure.exact_pose import ExactSettings, exact_measure, exact_measure_lut
+    from localizer.model.params import DetectionStats, DetectorParams
+    from localizer.search.recognize import find_stacks
+    from localizer.model.target import TargetSpec
+
+    camera, image = _frame()
+    p = DetectorParams().resolved(*image.shape)
+    v = find_stacks(image, camera, TargetSpec(), p, DetectionStats())[1][0]
+    settings = ExactSettings(0.05, 8, p.width_tolerance, p.width_slack, p.min_rows)
+    exact_measure(image, camera, TargetSpec(), v, settings)
+    box = (max(int(v.rows[0]) - 20, 0), int(v.rows[-1]) + 21, max(int(v.bounds[0]) - 15, 0), int(v.bounds[3]) + 16)
+    exact_measure_lut(image, SRGB_TO_LINEAR, box, camera, TargetSpec(), v, settings)
+
+
+def photometric() -> None:
+    """The photometric refinement (:func:`localizer.measure.photometric.refine_pose`), on its own kernels."""
+    from localizer.measure.photometric import refine_pose
+    from localizer.model.target import TargetSpec
+
+    camera, image = _frame()
+    refine_pose(image, camera, TargetSpec(), (1.0, 3.0, 0.3, 0.0), True, 30.0)
+
+
 def detector() -> None:
     """The edge-based (``"exact"``) detector and its photometric refinement, on the frame's
-    pixels and on a target's neighbourhood linearized through the sRGB inverse."""
+    pixels and on a target's neighbourhood linearized through the sRGB inverse (after
+    :func:`edges` and :func:`photometric`: their kernels loaded from the cache)."""
     from localizer.detect import detect_targets
 
     camera, image = _frame()
@@ -40,7 +71,7 @@ def detector() -> None:
 
 
 def thesis() -> None:
-    """The thesis's row-scanning method (``method="thesis"``)."""
+    """The thesis's row-scanning method (``method="thesis"``; after :func:`edges`)."""
     from localizer.detect import detect_targets
 
     camera, image = _frame()
@@ -60,11 +91,21 @@ def pyramid() -> None:
     level_image(image, 4, (1, 1, 13, 13))
 
 
-#: the parts, by name: ``"module:function"`` (importable in a fresh process)
+#: the parts, by name: ``"module:function"`` (importable in a fresh process), in the order they
+#: are started
 PARTS: dict[str, str] = {
+    "edges": "localizer.warmup:edges",
+    "photometric": "localizer.warmup:photometric",
+    "pyramid": "localizer.warmup:pyramid",
     "detector": "localizer.warmup:detector",
     "thesis": "localizer.warmup:thesis",
-    "pyramid": "localizer.warmup:pyramid",
+}
+
+#: the parts that call another's kernels, and those parts: started once those have finished (their
+#: kernels then load from the cache rather than being compiled a second time in another process)
+AFTER: dict[str, tuple[str, ...]] = {
+    "detector": ("edges", "photometric"),
+    "thesis": ("edges",),
 }
 
 

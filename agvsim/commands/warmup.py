@@ -3,8 +3,8 @@
 The localizer's and the raycaster's kernels are compiled the first time they are called and
 cached on disk (beside the modules, or in the user's cache directory, ``~/.cache/numba``, when
 the package's directory cannot be written); every later process loads them in about a second.
-In a fresh install that first call waits: this command does it ahead, in parallel processes,
-for an installer (``make install`` runs it), a container build or a new worker node. Once
+In a fresh install that first call waits: this command does it ahead, in parallel processes
+(a part that calls another's kernels starts once that one has cached them), for an installer (``make install`` runs it), a container build or a new worker node. Once
 the kernels are cached it finishes in seconds. Interrupted, it keeps what it compiled.
 """
 from __future__ import annotations
@@ -15,16 +15,27 @@ import time
 from agvsim.commands._args import number
 from agvsim.commands._output import add_json_flag, doc_help, emit_json, log, plural
 
-#: the parts to compile, by name: ``"module:function"``; the longest first (they are started
-#: in this order on the workers)
+#: the simulator's parts to compile, by name: ``"module:function"``
 PARTS: dict[str, str] = {"raycaster": "agvsim.sensors.render.warmup:raycaster"}
 
 
 def parts() -> dict[str, str]:
-    """The simulator's parts and the localizer's (:data:`localizer.warmup.PARTS`)."""
-    from localizer.warmup import PARTS as LOCALIZER_PARTS
+    """The parts in the order they are started: the localizer's that wait for no other
+    (:data:`localizer.warmup.PARTS`), the simulator's (which share no kernel with them), then
+    the localizer's that wait (:data:`localizer.warmup.AFTER`)."""
+    from localizer.warmup import AFTER, PARTS as LOCALIZER_PARTS
 
-    return {**PARTS, **LOCALIZER_PARTS}
+    first = {name: spec for name, spec in LOCALIZER_PARTS.items() if name not in AFTER}
+    return {**first, **PARTS, **{name: spec for name, spec in LOCALIZER_PARTS.items() if name in AFTER}}
+
+
+def waits(names: list[str]) -> list[set[int]]:
+    """For each part of ``names``, the indices of the parts it waits for (:data:`localizer.warmup.AFTER`;
+    a part not in ``names`` is not waited for)."""
+    from localizer.warmup import AFTER
+
+    index = {name: i for i, name in enumerate(names)}
+    return [{index[w] for w in AFTER.get(name, ()) if w in index} for name in names]
 
 
 def register(sub) -> None:
@@ -44,7 +55,7 @@ def compile_part(args: dict) -> tuple[str, float, int]:
 
 
 def run(args) -> int:
-    from agvsim.commands.workers import run_units
+    from agvsim.commands.workers import run_after
 
     todo = parts()
     jobs = min(args.jobs or os.cpu_count() or 1, len(todo))
@@ -60,7 +71,7 @@ def run(args) -> int:
 
     units = [{"name": name, "spec": spec} for name, spec in todo.items()]
     try:
-        run_units(compile_part, units, jobs, finished, lambda _: None)
+        run_after(compile_part, units, waits(list(todo)), jobs, finished)
     except KeyboardInterrupt:
         log(f"agvsim warmup: interrupted after {len(done)}/{len(todo)} parts; what was compiled is cached: "
             "run it again to finish")

@@ -22,7 +22,7 @@ import signal
 from contextlib import contextmanager
 from typing import Callable, Iterator
 
-__all__ = ["MetreReporter", "run_units", "sigint_blocked", "worker_init"]
+__all__ = ["MetreReporter", "run_after", "run_units", "sigint_blocked", "worker_init"]
 
 _QUEUE = None  # a worker's progress queue (set by worker_init)
 
@@ -146,6 +146,50 @@ def run_units(job: Callable[[dict], tuple], units: list[dict], workers: int,
     except BaseException:
         if pool is not None:
             pool.terminate()  # (Ctrl-C, or a unit's error: the workers stop now)
+        raise
+    finally:
+        if pool is not None:
+            pool.join()
+
+
+def run_after(job: Callable[[dict], tuple], units: list[dict], waits: list[set[int]], workers: int,
+              finished: Callable[..., None]) -> None:
+    """:func:`run_units` for units that wait for others: unit ``i`` starts once every unit of
+    ``waits[i]`` (indices into ``units``, each earlier in the list) has finished; a free worker
+    takes the first unit, in the list's order, that waits for nothing. ``finished(*result)`` as
+    each ends. A Ctrl-C or an error stops the workers at once and is raised.
+    """
+    import multiprocessing as mp
+    import time
+
+    if any(j >= i for i, w in enumerate(waits) for j in w):
+        raise ValueError("a unit can only wait for units before it")
+    if workers == 1 or len(units) == 1:  # (the list's order keeps every wait)
+        for args in units:
+            finished(*job({**args, "queue": None}))
+        return
+    ctx = mp.get_context("spawn")
+    pool = None
+    try:
+        with sigint_blocked():
+            pool = ctx.Pool(min(workers, len(units)), initializer=worker_init, initargs=(ctx.Queue(),))
+        todo, running, done = list(range(len(units))), {}, set()
+        while todo or running:
+            while todo and len(running) < workers:
+                ready = next((i for i in todo if waits[i] <= done), None)
+                if ready is None:
+                    break
+                todo.remove(ready)
+                running[ready] = pool.apply_async(_call, ((job, units[ready]),))
+            for i in [i for i, r in running.items() if r.ready()]:
+                result = running.pop(i).get()
+                done.add(i)
+                finished(*result)
+            time.sleep(0.05)
+        pool.close()
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
         raise
     finally:
         if pool is not None:

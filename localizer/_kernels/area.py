@@ -6,11 +6,9 @@ The values are OpenCV's (``cv2.resize`` with ``INTER_AREA`` by exactly one half,
 for 8 bits): ``(a + b + c + d + 2) >> 2`` per 2 x 2 block; :func:`area_quarter` is two such
 halvings, the first one's rounding kept, without writing the intermediate level (a 2448 x 2048
 frame to 612 x 512 in ~0.25 ms when the frame is in the cache, against ~0.32 ms for two
-``cv2.resize`` calls; both read the frame's 5 MB once, the rest is arithmetic). While a row of
-the level is computed, the image rows of the next one are prefetched
-(:func:`localizer._jit.prefetch`): a frame in memory rather than in the cache (as a camera's
-driver leaves it) then takes ~0.49 ms instead of ~0.67 (one core of the 2-vCPU machine of
-BENCHMARKS.md); a 1920 x 1200 frame halved ~0.21 ms instead of ~0.27.
+``cv2.resize`` calls; both read the frame's 5 MB once, the rest is arithmetic). A frame in
+memory rather than in the cache (as a camera's driver leaves it) streams through the hardware's
+prefetchers: ~0.67 ms (one core of the 2-vCPU machine of BENCHMARKS.md).
 
 Both read a window of a C-contiguous ``(H, W)`` uint8 image starting at row ``y0``, column
 ``x0`` (a crop is not copied first) and fill ``out`` ``(h, w)`` uint8: level pixel ``(i, j)``
@@ -21,21 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from localizer._jit import inline, jit, prefetch
+from localizer._jit import jit
 
-__all__ = ["LINE", "area_half", "area_quarter", "prefetch_rows"]
-
-#: bytes of a cache line (x86-64, most ARM cores): the stride of the kernels' prefetches
-LINE = 64
-
-
-@inline
-def prefetch_rows(flat, start, stride, n, width):
-    """:func:`localizer._jit.prefetch` of ``n`` rows of ``width`` pixels of an image flattened to
-    ``flat`` (rows ``stride`` pixels apart), the first from index ``start``, a cache line at a time."""
-    for r in range(n):
-        for i in range(start + r * stride, start + r * stride + width, LINE):
-            prefetch(flat, i)
+__all__ = ["area_half", "area_quarter"]
 
 
 @jit
@@ -45,11 +31,7 @@ def area_half(image, y0, x0, out):
     ``y0 + 2 h <= H``, ``x0 + 2 w <= W``."""
     h, w = out.shape
     two = np.uint16(2)
-    flat = image.reshape(image.size)
-    stride = image.shape[1]
     for y in range(h):
-        if y + 1 < h:  # the next output row's two image rows
-            prefetch_rows(flat, (y0 + 2 * y + 2) * stride + x0, stride, 2, 2 * w)
         r0 = image[y0 + 2 * y, x0:]
         r1 = image[y0 + 2 * y + 1, x0:]
         o = out[y]
@@ -71,11 +53,7 @@ def area_quarter(image, y0, x0, out):
     two = np.uint16(2)
     a = np.empty(2 * w, np.uint16)
     b = np.empty(2 * w, np.uint16)
-    flat = image.reshape(image.size)
-    stride = image.shape[1]
     for y in range(h):
-        if y + 1 < h:  # the next output row's four image rows
-            prefetch_rows(flat, (y0 + 4 * y + 4) * stride + x0, stride, 4, 4 * w)
         r0 = image[y0 + 4 * y, x0:]
         r1 = image[y0 + 4 * y + 1, x0:]
         r2 = image[y0 + 4 * y + 2, x0:]

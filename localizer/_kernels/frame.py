@@ -2,7 +2,7 @@
 
 For the ``exact`` method on an undistorted camera: the search
 (:func:`localizer._kernels.search.recognize`), then for each verified stack the subpixel edges
-and the exact pose (:func:`localizer._kernels.measure.measure_into`), on the sRGB-linearized
+and the exact pose (:func:`localizer._kernels.measure.measure`), on the sRGB-linearized
 window where the camera's response says so, and the checks of
 :func:`localizer.detect.detect_targets` that need no more than the pose. Only the
 photometric refinement, where a target falls short, is left to Python
@@ -21,9 +21,9 @@ import math
 import numpy as np
 
 from localizer._jit import jit
-from localizer._kernels.measure import linear_box, measure_into, measure_lut_into
-from localizer._kernels.records import (EXACT_RESULT, EXACT_SETTINGS, FrameStatus, FusedColumn, FusedTarget, Intrinsics,
-                                        TargetConstants)
+from localizer._kernels.measure import linear_box, measure, measure_lut
+from localizer._kernels.records import (EXACT_RESULT, EXACT_SETTINGS, INTRINSICS, TARGET_CONSTANTS, FrameStatus, FusedColumn,
+                                        FusedTarget)
 from localizer._kernels.search import recognize
 
 
@@ -70,8 +70,11 @@ def detect_frame(image, search_image, search, settings, lut):
     if nv == 0:
         return sr, table
     s = settings[0]
-    cam = Intrinsics(s.fx, s.fy, s.cx, s.cy)
-    tc = TargetConstants(s.bar_width, s.bar_height, s.margin)
+    # (the measurement's arguments as records, the types its Python callers pass: one compiled measure)
+    cam = np.zeros(1, INTRINSICS)
+    cam[0].fx, cam[0].fy, cam[0].cx, cam[0].cy = s.fx, s.fy, s.cx, s.cy
+    tc = np.zeros(1, TARGET_CONSTANTS)
+    tc[0].bar_width, tc[0].bar_height, tc[0].margin = s.bar_width, s.bar_height, s.margin
     es = np.zeros(2, EXACT_SETTINGS)  # (not clipped, clipped)
     for k in range(2):
         es[k].sigma_floor = s.clipped_floor if k else s.sigma_floor
@@ -82,6 +85,7 @@ def detect_frame(image, search_image, search, settings, lut):
     h, w = image.shape
     e = np.empty((2, 2), np.int64)
     bounds = np.empty(4)  # (a plain array: the measurement's types those of its Python callers)
+    results = np.zeros(2, EXACT_RESULT)  # a stack's measurement on the frame's pixels, on the linearized window
     j = 0
     for i in range(cand.size):
         cd = cand[i]
@@ -89,25 +93,23 @@ def detect_frame(image, search_image, search, settings, lut):
             continue
         saturated = cd.bright >= 250.0
         clipped = saturated or cd.dark <= 5.0
-        st = es[1] if clipped else es[0]
+        st = es[1:2] if clipped else es[0:1]
         stack_rows = sr.rows[cd.start:cd.stop]
         for k in range(4):
             bounds[k] = cd.median_x[k]
         e[0, 0], e[0, 1], e[1, 0], e[1, 1] = cd.top1, cd.bottom1, cd.top2, cd.bottom2
         box = linear_box(h, w, cd.top1, cd.bottom1, cd.top2, cd.bottom2, bounds[0], bounds[3])
-        results = np.zeros(2, EXACT_RESULT)  # its measurement on the frame's pixels, on the linearized window
         linear = False
         if s.srgb:
-            measure_lut_into(results[1], image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)
+            results[1] = measure_lut(image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)[0][0]
             linear = True
         else:
+            results[0] = measure(image, stack_rows, bounds, e, cd.positive, cam, tc, st)[0]
             r = results[0]
-            measure_into(r, image, stack_rows, bounds, e, cd.positive, cam, tc, st)
             if (s.auto_response and r.found and not clipped and r.edge_bias > 0.5 * s.encoded_shift
                     and r.edge_bias > s.encoded_shift * at_least(r.blur, 0.5)):
-                lin = results[1]
-                measure_lut_into(lin, image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)
-                linear = lin.found  # the encoded edges made a target, the linear ones do not: keep them
+                results[1] = measure_lut(image, lut, box, stack_rows, bounds, e, cd.positive, cam, tc, st)[0][0]
+                linear = results[1].found  # the encoded edges made a target, the linear ones do not: keep them
         r = results[1] if linear else results[0]
         status = decide(r, s, saturated, clipped)
         row = table[j]

@@ -6,7 +6,7 @@ Subpixel edges (:func:`localizer._kernels.subpixel.subpixel`), the target test
 these steps cost as much as the steps.
 
 Its callees are compiled into it, and numba's cache keys on this file alone: after a change
-to a callee, the cached ``exact_measure`` in ``__pycache__`` is the old code until removed.
+to a callee, the cached ``measure`` in ``__pycache__`` is the old code until removed.
 """
 from __future__ import annotations
 
@@ -22,33 +22,35 @@ from localizer._kernels.target_test import makes_target
 
 
 @jit
-def exact_measure(image, stack_rows, bounds, ends, positive, camera, target, settings):
-    """:func:`localizer.measure.exact_pose.exact_measure`'s compiled body.
+def measure(image, stack_rows, bounds, ends, positive, camera, target, settings):
+    """The subpixel edges, the target test and the exact pose of one verified stack of ``image``.
 
     Args:
-        image: ``(H, W)`` uint8 frame.
+        image: ``(H, W)`` uint8 frame, C-contiguous.
         stack_rows: ``(n,)`` int64 rows of the verified stack.
-        bounds: ``(4,)`` float median run boundaries of the stack (columns).
-        ends: ``((top1, bottom1), (top2, bottom2))`` rough bar ends (rows).
+        bounds: ``(4,)`` float64 median run boundaries of the stack (columns).
+        ends: ``(2, 2)`` int64 rough bar ends (rows): ``[[top1, bottom1], [top2, bottom2]]``.
         positive: target polarity (black bars on white).
         camera: ``(1,)`` :data:`~localizer._kernels.records.INTRINSICS` record (px).
         target: ``(1,)`` :data:`~localizer._kernels.records.TARGET_CONSTANTS` record (m).
         settings: ``(1,)`` :data:`~localizer._kernels.records.EXACT_SETTINGS` record.
 
-    Returns a ``(1,)`` :data:`~localizer._kernels.records.EXACT_RESULT` record: ``found``
+    Returns a new ``(1,)`` :data:`~localizer._kernels.records.EXACT_RESULT` record: ``found``
     False when the edges do not make a target or no fit converged (the pose is then zeros
-    and the covariance the identity); the edges (px) in either case.
+    and the covariance the identity); the edges (px) in either case. The one compiled
+    measurement: :func:`localizer.measure.exact_pose.exact_measure` and the fused frame call
+    (:func:`localizer._kernels.frame.detect_frame`) call it with the same argument types.
     """
+    out = np.zeros(1, EXACT_RESULT)
     c, t = camera[0], target[0]
-    e = np.empty((2, 2), np.int64)
-    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
-    return measure(image, stack_rows, bounds, e, positive, Intrinsics(c.fx, c.fy, c.cx, c.cy),
-                   TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
+    measure_into(out[0], image, stack_rows, bounds, ends, positive, Intrinsics(c.fx, c.fy, c.cx, c.cy),
+                 TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
+    return out
 
 
 @jit
-def exact_measure_lut(image, lut, box, stack_rows, bounds, ends, positive, camera, target, settings):
-    """:func:`exact_measure` of the window ``box = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns
+def measure_lut(image, lut, box, stack_rows, bounds, ends, positive, camera, target, settings):
+    """:func:`measure` of the window ``box = (r0, r1, c0, c1)`` (rows ``r0:r1``, columns
     ``c0:c1``) of ``image`` with every grey level passed through ``lut`` ``(256,)`` uint8 (the
     sRGB inverse of :data:`localizer.detect.SRGB_TO_LINEAR`): the window's own camera (principal
     point moved by ``(c0, r0)``) and the stack ``stack_rows``, ``bounds``, ``ends`` (frame
@@ -56,21 +58,6 @@ def exact_measure_lut(image, lut, box, stack_rows, bounds, ends, positive, camer
     more than the measurement). Returns ``(result, window)``: the
     :data:`~localizer._kernels.records.EXACT_RESULT` record, in the window's pixels, and the
     ``(r1 - r0, c1 - c0)`` uint8 window it was measured on."""
-    c, t = camera[0], target[0]
-    e = np.empty((2, 2), np.int64)
-    e[0, 0], e[0, 1], e[1, 0], e[1, 1] = ends[0][0], ends[0][1], ends[1][0], ends[1][1]
-    out = np.zeros(1, EXACT_RESULT)
-    win = measure_lut_into(out[0], image, lut, box, stack_rows, bounds, e, positive,
-                           Intrinsics(c.fx, c.fy, c.cx, c.cy), TargetConstants(t.bar_width, t.bar_height, t.margin),
-                           settings[0])
-    return out, win
-
-
-@jit
-def measure_lut_into(r, image, lut, box, stack_rows, bounds, e, positive, cam, tc, st):
-    """:func:`measure_into` of the window ``box = (r0, r1, c0, c1)`` of ``image`` passed through
-    ``lut`` (:func:`exact_measure_lut`; ``stack_rows``, ``bounds``, ``e`` and ``cam`` the frame's,
-    the result in the window's pixels). Returns the uint8 window."""
     r0, r1, c0, c1 = box[0], box[1], box[2], box[3]
     win = np.empty((r1 - r0, c1 - c0), np.uint8)
     for i in range(r1 - r0):
@@ -79,10 +66,13 @@ def measure_lut_into(r, image, lut, box, stack_rows, bounds, e, positive, cam, t
         for j in range(c1 - c0):
             dst[j] = lut[src[c0 + j]]
     ew = np.empty((2, 2), np.int64)
-    ew[0, 0], ew[0, 1], ew[1, 0], ew[1, 1] = e[0, 0] - r0, e[0, 1] - r0, e[1, 0] - r0, e[1, 1] - r0
-    measure_into(r, win, stack_rows - r0, bounds - c0, ew, positive, Intrinsics(cam.fx, cam.fy, cam.cx - c0, cam.cy - r0),
-                 tc, st)
-    return win
+    ew[0, 0], ew[0, 1], ew[1, 0], ew[1, 1] = ends[0, 0] - r0, ends[0, 1] - r0, ends[1, 0] - r0, ends[1, 1] - r0
+    c = camera[0]
+    out = np.zeros(1, EXACT_RESULT)
+    t = target[0]
+    measure_into(out[0], win, stack_rows - r0, bounds - c0, ew, positive, Intrinsics(c.fx, c.fy, c.cx - c0, c.cy - r0),
+                 TargetConstants(t.bar_width, t.bar_height, t.margin), settings[0])
+    return out, win
 
 
 @jit
@@ -98,16 +88,8 @@ def linear_box(h, w, t0, b0, t1, b1, x0, x3):
 
 
 @jit
-def measure(image, stack_rows, bounds, e, positive, cam, tc, st):
-    """:func:`exact_measure`'s body, its result a new ``(1,)`` record (:func:`measure_into`)."""
-    out = np.zeros(1, EXACT_RESULT)
-    measure_into(out[0], image, stack_rows, bounds, e, positive, cam, tc, st)
-    return out
-
-
-@jit
 def measure_into(r, image, stack_rows, bounds, e, positive, cam, tc, st):
-    """:func:`exact_measure`'s body, written into ``r`` (an :data:`~localizer._kernels.records.EXACT_RESULT`
+    """:func:`measure`'s body, written into ``r`` (an :data:`~localizer._kernels.records.EXACT_RESULT`
     record of zeros): ``e`` ``(2, 2)`` int64 rough bar ends (rows), ``cam`` an
     :class:`~localizer._kernels.records.Intrinsics`, ``tc`` a
     :class:`~localizer._kernels.records.TargetConstants`, ``st`` an

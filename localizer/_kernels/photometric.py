@@ -11,7 +11,7 @@ from localizer._jit import jit
 from localizer._kernels.blur import CLIP, blur_weights, closed_step, edge_fraction, sampled_step
 from localizer._kernels.photometric_select import select
 from localizer._kernels.projection import bar_edge_u, edge_x_jacobian, plane, ray_inverse_range
-from localizer._kernels.records import ColumnModel, FitEnds, Refinement
+from localizer._kernels.records import ColumnModel, FitEnds, FitRun, Refinement
 
 #: the fraction of the printed margin (from the bars outwards) that enters the fit
 MARGIN_SHARE = 0.5
@@ -222,23 +222,25 @@ def _solve(A, g, lam, p):
 
 
 @jit
-def lm(p, obs, sel, cam, target, positive, iterations, tol, ends, n_ends, best, give_up, resume):
-    """Levenberg-Marquardt of :func:`evaluate` from ``p`` (NP,), updated in place, at most
-    ``iterations`` steps, ended when a step lowers the cost by less than ``tol`` of it or the
-    linear model promises less than that. The ends of earlier fits of the same pixels
-    (``ends``: :class:`~localizer._kernels.records.FitEnds`, ``n_ends`` of them filled): a fit
+def lm(p, obs, sel, cam, target, positive, ends, run):
+    """Levenberg-Marquardt of :func:`evaluate` from ``p`` (NP,), updated in place, as ``run``
+    (a :class:`~localizer._kernels.records.FitRun`) says: at most ``run.iterations`` steps, ended
+    when a step lowers the cost by less than ``run.tol`` of it or the linear model promises less
+    than that. The ends of earlier fits of the same pixels
+    (``ends``: :class:`~localizer._kernels.records.FitEnds`, ``run.n_ends`` of them filled): a fit
     that reaches the bowl of one of them stops there (:func:`same_basin`: it would end where
     that one did). ``resume``: the index of an end at ``p`` whose normal equations are taken
-    rather than formed again (-1: none). Returns ``(cost, merged)``: ``merged`` the index of
+    rather than formed again (``run.resume``; -1: none). Returns ``(cost, merged)``: ``merged`` the index of
     that end, -2 when the fit was abandoned (after :data:`ABANDON_AFTER` steps its cost still
-    above :data:`ABANDON` times ``best``, the lowest end cost so far, or before its first step
-    above ``give_up`` times it), else -1 (and the normal equations at ``p`` are left in
-    ``ends.A[n_ends]``, ``ends.g[n_ends]`` when there is room).
+    above :data:`ABANDON` times ``run.best``, the lowest end cost so far, or before its first step
+    above ``run.give_up`` times it), else -1 (and the normal equations at ``p`` are left in
+    ``ends.A[run.n_ends]``, ``ends.g[run.n_ends]`` when there is room).
 
     The damped normal equations are solved by ``np.linalg.solve`` (LAPACK), not by
     :mod:`localizer.smallmat` like the other fits: LAPACK's (OpenBLAS's) operation order
     cannot be reproduced by a hand-written elimination, and any other order changes the
     refined poses in their last bits (and with them the recorded accuracy figures)."""
+    iterations, tol, n_ends, best, give_up, resume = run
     n = obs.size
     res = np.empty(n)
     J = np.empty((n, NP))
@@ -363,9 +365,10 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
         p[5] = bright0 if bright0 < CLIP - 5.0 else dark0 + 2.0 * (255.0 - dark0)
         p[6] = min(max(sigma0, SIGMA_MIN), SIGMA_MAX)
         p[7] = 0.0
-        # iteration counts typed int64, not as the literals 6 and 30: one compiled lm, not two
-        c, merged = lm(p, obs, sel, cam, target, positive, np.int64(START_ITERATIONS), START_TOL, ends, n_ends,
-                       best_cost, give_up, np.int64(-1))
+        # (counts typed int64, costs float64, in both calls: one compiled lm)
+        c, merged = lm(p, obs, sel, cam, target, positive, ends,
+                       FitRun(np.int64(START_ITERATIONS), np.float64(START_TOL), np.int64(n_ends),
+                              np.float64(best_cost), np.float64(give_up), np.int64(-1)))
         if merged != -1:
             continue
         for a in range(NP):
@@ -379,5 +382,7 @@ def refine(image, p0, alt_alpha, start, cam, target, positive, wide):
     if not best_cost < np.inf:  # every start turned beyond ALPHA_MAX (or no finite fit): nothing to refine
         return Refinement(False, p, n, 0.0)
     p[:] = best
-    cost, _ = lm(p, obs, sel, cam, target, positive, np.int64(ITERATIONS), TOL, ends, 0, np.inf, np.inf, i_best)
+    cost, _ = lm(p, obs, sel, cam, target, positive, ends,
+                 FitRun(np.int64(ITERATIONS), np.float64(TOL), np.int64(0), np.float64(np.inf), np.float64(np.inf),
+                        np.int64(i_best)))
     return Refinement(True, p, n, cost)

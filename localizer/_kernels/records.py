@@ -7,7 +7,7 @@ the target and the search settings as the named tuples below rather than as long
 of positional scalars, and return named tuples rather than arrays packed by index.
 
 The per-frame entry points (:func:`localizer._kernels.search.recognize`,
-:func:`localizer._kernels.measure.exact_measure`) take and return numpy *records*
+:func:`localizer._kernels.measure.measure`) take and return numpy *records*
 (structured arrays, fields read by name in nopython code too) instead: numba types a
 named tuple argument in Python code, ~1 µs for a small one and ~3.5 µs for
 :class:`SearchSettings`, and boxes a named tuple result by calling its class, while a
@@ -27,7 +27,7 @@ import numpy as np
 
 __all__ = ["CANDIDATE", "EXACT_RESULT", "EXACT_SETTINGS", "INTRINSICS", "MEASURE_SETTINGS", "N_REASONS", "REASONS",
            "SEARCH_COUNTS", "SEARCH_SETTINGS", "TARGET_CONSTANTS", "ColumnModel", "ExactSettings", "FitEnds",
-           "FitGeometry", "FitStatus", "FrameStatus", "FusedColumn", "FusedTarget", "Intrinsics", "Levels",
+           "FitGeometry", "FitRun", "FitStatus", "FrameStatus", "FusedColumn", "FusedTarget", "Intrinsics", "Levels",
            "MeasureSettings", "MeasuredEdges", "PoseFit", "ProfileFit", "Refinement", "Reject", "RunTest",
            "SearchResult", "SearchSettings", "Selection", "TargetConstants", "Verification", "as_record",
            "record_dtype"]
@@ -101,7 +101,7 @@ class SearchSettings(NamedTuple):
 
 class ExactSettings(NamedTuple):
     """Settings of the fused subpixel-edges + exact-pose call
-    (:func:`localizer._kernels.measure.exact_measure`; passed as :func:`as_record`)."""
+    (:func:`localizer._kernels.measure.measure`; passed as :func:`as_record`)."""
 
     sigma_floor: float  # px, added in quadrature to every edge's standard error
     iterations: int  # Gauss-Newton iterations per start
@@ -277,7 +277,7 @@ class PoseFit(NamedTuple):
     n_solutions: int  # minima found in front of the camera
 
 
-#: result of :func:`localizer._kernels.measure.exact_measure`, a (1,) record array: whether
+#: result of :func:`localizer._kernels.measure.measure`, a (1,) record array: whether
 #: a pose was fitted, the measured edges (px), the pose (m, rad; ``edge_bias`` px; zeros
 #: when not fitted) and its covariance over (d, beta, alpha) (identity when not fitted)
 EXACT_RESULT = np.dtype([
@@ -379,6 +379,18 @@ class FitEnds(NamedTuple):
     A: np.ndarray  # (k, NP, NP)
     g: np.ndarray  # (k, NP)
     cost: np.ndarray  # (k,)
+
+
+class FitRun(NamedTuple):
+    """How one photometric fit runs (:func:`localizer._kernels.photometric.lm`); every field
+    typed as below at every call, so that one ``lm`` is compiled."""
+
+    iterations: int  # int64, the most steps taken
+    tol: float  # the fit ends when a step lowers the cost by less than this share of it
+    n_ends: int  # int64, how many of the FitEnds are filled (earlier fits of the same pixels)
+    best: float  # the lowest cost among those ends (inf: none)
+    give_up: float  # abandoned before its first step when its cost is above this many times ``best``
+    resume: int  # int64, the end at the start whose normal equations are taken (-1: none)
 
 
 class Refinement(NamedTuple):

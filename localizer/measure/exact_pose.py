@@ -19,7 +19,7 @@ from localizer.measure.edges import EdgeMeasurements
 from localizer.measure.pose import PoseEstimate
 from localizer.model.target import TargetSpec
 
-__all__ = ["alpha_a14", "exact_measure", "exact_measure_lut", "exact_pose"]
+__all__ = ["ExactSettings", "alpha_a14", "exact_measure", "exact_measure_lut", "exact_pose"]
 
 
 def exact_pose(m: EdgeMeasurements, camera: Camera, target: TargetSpec, positive: bool,
@@ -63,38 +63,42 @@ def _estimate(f: PoseFit) -> PoseEstimate:
                         f.n_solutions > 1, delta, math.sqrt(f.chi2 / 3.0))  # 8 measurements, 5 unknowns
 
 
-def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, sigma_floor: float,
-                  width_tolerance: float, width_slack: float, min_rows: float, iterations: int = 8):
+def exact_measure(image: np.ndarray, camera: Camera, target: TargetSpec, st, settings: ExactSettings):
     """:func:`localizer.measure.subpixel_edges.subpixel_edges`, the target test of
     :func:`localizer._kernels.target_test.makes_target` and :func:`exact_pose` of the
-    verified stack ``st``, in one compiled call (:func:`localizer._kernels.measure.exact_measure`),
-    for a camera without lens distortion: the
-    per-target path of ``detect_targets``, where Python between the steps cost as much as
-    the steps.
+    verified stack ``st`` of ``image`` (``(H, W)`` uint8), in one compiled call
+    (:func:`localizer._kernels.measure.measure`, the one the fused frame call makes too), for a
+    camera without lens distortion: the per-target path of ``detect_targets``, where Python
+    between the steps cost as much as the steps. ``settings``: the per-edge error floor (px),
+    the Gauss-Newton iterations and the target test's tolerances.
 
     Returns ``(edges, bar_cx, top, bottom, pose)``: tuples of pixel coordinates (4, 2, 2, 2)
     and the :class:`PoseEstimate` (None when the edges do not make a target or the fit
     fails).
     """
-    return _unpack(measure.exact_measure(image, st.rows, st.bounds, st.ends, bool(st.positive),
-                                         camera.intrinsics_record, target.constants_record,
-                                         _settings(float(sigma_floor), int(iterations), float(width_tolerance),
-                                                   float(width_slack), float(min_rows))))
+    return _unpack(measure.measure(image, *_stack(st), camera.intrinsics_record, target.constants_record,
+                                   _settings(settings)))
 
 
 def exact_measure_lut(image: np.ndarray, lut: np.ndarray, box: tuple[int, int, int, int], camera: Camera,
-                      target: TargetSpec, st, sigma_floor: float, width_tolerance: float, width_slack: float,
-                      min_rows: float, iterations: int = 8):
+                      target: TargetSpec, st, settings: ExactSettings):
     """:func:`exact_measure` of the window ``box = (r0, r1, c0, c1)`` of ``image`` (rows ``r0:r1``,
     columns ``c0:c1``) with its grey levels passed through ``lut`` ``(256,)`` uint8, in one
-    compiled call (:func:`localizer._kernels.measure.exact_measure_lut`; ``st`` in the frame's
+    compiled call (:func:`localizer._kernels.measure.measure_lut`; ``st`` in the frame's
     pixels). Returns ``(edges, bar_cx, top, bottom, pose, window)``: as :func:`exact_measure`'s,
     in the window's pixels, and the ``(r1 - r0, c1 - c0)`` uint8 window measured."""
-    r, window = measure.exact_measure_lut(image, lut, box, st.rows, st.bounds, st.ends, bool(st.positive),
-                                          camera.intrinsics_record, target.constants_record,
-                                          _settings(float(sigma_floor), int(iterations), float(width_tolerance),
-                                                    float(width_slack), float(min_rows)))
+    r0, r1, c0, c1 = box
+    r, window = measure.measure_lut(image, lut, (int(r0), int(r1), int(c0), int(c1)), *_stack(st),
+                                    camera.intrinsics_record, target.constants_record, _settings(settings))
     return (*_unpack(r), window)
+
+
+def _stack(st) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The verified stack ``st``'s ``(rows, bounds, ends, positive)`` as the compiled measurement
+    takes them (the types the fused frame call passes: one compiled kernel): ``(n,)`` int64 rows,
+    ``(4,)`` float64 median run boundaries, ``(2, 2)`` int64 rough bar ends."""
+    return (np.ascontiguousarray(st.rows, np.int64), np.ascontiguousarray(st.bounds, np.float64),
+            np.array(st.ends, np.int64).reshape(2, 2), bool(st.positive))
 
 
 def _unpack(r: np.ndarray):
@@ -109,8 +113,9 @@ def _unpack(r: np.ndarray):
 
 
 @functools.lru_cache(maxsize=64)
-def _settings(sigma_floor: float, iterations: int, width_tolerance: float, width_slack: float,
-              min_rows: float) -> np.ndarray:
-    """The :data:`~localizer._kernels.records.EXACT_SETTINGS` record of these values (cached;
+def _settings(settings: ExactSettings) -> np.ndarray:
+    """The :data:`~localizer._kernels.records.EXACT_SETTINGS` record of ``settings`` (cached;
     the caller must not change it)."""
-    return as_record(ExactSettings(sigma_floor, iterations, width_tolerance, width_slack, min_rows))
+    return as_record(ExactSettings(float(settings.sigma_floor), int(settings.iterations),
+                                   float(settings.width_tolerance), float(settings.width_slack),
+                                   float(settings.min_rows)))

@@ -16,11 +16,12 @@ from typing import NamedTuple
 import numpy as np
 
 from localizer._kernels import frame
-from localizer._kernels.records import FusedColumn, FusedTarget, MeasureSettings, as_record
+from localizer._kernels.records import (FusedColumn, FusedTarget, Intrinsics, MeasureSettings, TargetConstants,
+                                        as_record)
 from localizer.model.params import DetectionStats, DetectorParams
 from localizer.search.recognize import add_counts, search_settings
 
-__all__ = ["FramePlan", "FrameTargets", "detect_frame", "frame_plan"]
+__all__ = ["EdgeChecks", "FramePlan", "FrameTargets", "detect_frame", "frame_plan"]
 
 #: the first covariance column of the fused call's table (9 columns, row by row)
 COV = int(FusedColumn.COV00)
@@ -47,24 +48,32 @@ class FrameTargets(NamedTuple):
     covariances: np.ndarray  # (V, 3, 3)
 
 
+class EdgeChecks(NamedTuple):
+    """:mod:`localizer.detect`'s decisions on a target's edge-based pose, as the fused call makes them."""
+
+    encoded_shift: float  # share of the blur sd: the edges' common shift that says "linearize" (ENCODED_SHIFT)
+    max_shift_share: float  # share of the blur sd: a larger shift is not a target (MAX_SHIFT_SHARE)
+    max_alpha: float  # rad, the largest |alpha| reported
+    max_fit_rms: float  # the largest normalised fit residual reported
+    clipped_floor: float  # px, the per-edge error floor of a clipped target (at least)
+
+
 @functools.lru_cache(maxsize=64)
-def frame_plan(p: DetectorParams, fx: float, fy: float, cx: float, cy: float, bar_width: float, bar_height: float,
-               margin: float, encoded_shift: float, max_shift_share: float, max_alpha: float,
-               max_fit_rms: float, clipped_floor: float) -> FramePlan:
+def frame_plan(p: DetectorParams, camera: Intrinsics, target: TargetConstants, checks: EdgeChecks) -> FramePlan:
     """The :class:`FramePlan` of resolved parameters ``p`` (:meth:`DetectorParams.resolved`), an
-    undistorted camera's intrinsics (px), a target's bar width and height and margin (m), and
-    :mod:`localizer.detect`'s decisions on a target's edges: its shares of the blur sd
-    (``ENCODED_SHIFT``, ``MAX_SHIFT_SHARE``), the largest ``|alpha|`` (rad) and fit residual
-    reported, and the per-edge floor of a clipped target (px, at least; cached)."""
+    undistorted camera's intrinsics (px), a target's bar width, height and margin (m), and
+    :mod:`localizer.detect`'s decisions on a target's edges (cached)."""
+    fx, fy, cx, cy = camera
+    bar_width, bar_height, margin = target
     return FramePlan(search_settings(p, fx, fy, bar_width, bar_height), as_record(MeasureSettings(
         fx=fx, fy=fy, cx=cx, cy=cy, bar_width=bar_width, bar_height=bar_height, margin=margin,
-        sigma_floor=float(p.edge_sigma_floor), clipped_floor=max(float(p.edge_sigma_floor), clipped_floor),
+        sigma_floor=float(p.edge_sigma_floor), clipped_floor=max(float(p.edge_sigma_floor), checks.clipped_floor),
         iterations=8, width_tolerance=float(p.width_tolerance), width_slack=float(p.width_slack),
         min_rows=float(p.min_rows), srgb=p.response == "srgb", auto_response=p.response == "auto",
-        encoded_shift=encoded_shift, max_shift_share=max_shift_share, refine_all=p.photometric == "all",
-        refine_clipped=p.photometric == "clipped", refine_auto=p.photometric == "auto",
-        refine_alpha_var=float(p.refine_alpha_sd) ** 2, refine_range_sd=float(p.refine_range_sd),
-        max_alpha=max_alpha, max_fit_rms=max_fit_rms)))
+        encoded_shift=checks.encoded_shift, max_shift_share=checks.max_shift_share,
+        refine_all=p.photometric == "all", refine_clipped=p.photometric == "clipped",
+        refine_auto=p.photometric == "auto", refine_alpha_var=float(p.refine_alpha_sd) ** 2,
+        refine_range_sd=float(p.refine_range_sd), max_alpha=checks.max_alpha, max_fit_rms=checks.max_fit_rms)))
 
 
 def detect_frame(image: np.ndarray, plan: FramePlan, lut: np.ndarray, stats: DetectionStats | None,

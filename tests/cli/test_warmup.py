@@ -92,3 +92,24 @@ def test_warmup_compiles_on_parallel_workers_then_only_loads(tmp_path, monkeypat
     assert set(first["parts"]) == {"inverse", "solve"} and first["jobs"] == 2
     assert all(part["compiled"] >= 1 for part in first["parts"].values())
     assert second["compiled"] == 0  # every kernel from the cache the first run wrote
+
+
+def test_a_part_that_calls_another_parts_kernels_starts_after_it():
+    from localizer.warmup import AFTER
+
+    names = list(warmup.parts())
+    index = {name: i for i, name in enumerate(names)}
+    assert AFTER and set(AFTER) <= set(names)
+    order = warmup.waits(names)
+    for name, before in AFTER.items():
+        assert order[index[name]] == {index[b] for b in before}
+        assert all(index[b] < index[name] for b in before)
+    assert order[index["raycaster"]] == set()
+    assert warmup.waits(["thesis"]) == [set()]  # (a part not run is not waited for)
+
+
+def test_a_unit_never_waits_for_a_later_one():
+    from agvsim.commands.workers import run_after
+
+    with pytest.raises(ValueError):
+        run_after(lambda args: (), [{}, {}], [{1}, set()], 2, lambda: None)

@@ -168,7 +168,7 @@ def test_the_exact_measurement_reports_the_blur_it_was_measured_at(blur):
     # the blur sd the compiled measurement returns is the row-mean profile's on the rows its edges
     # are measured on: what detect_targets' checks would otherwise compute again
     from localizer._kernels.subpixel import edge_rows
-    from localizer.measure.exact_pose import exact_measure
+    from localizer.measure.exact_pose import ExactSettings, exact_measure
     from localizer.model.params import DetectionStats, DetectorParams
     from localizer.search.recognize import find_stacks
     from localizer.model.target import TargetSpec
@@ -177,7 +177,8 @@ def test_the_exact_measurement_reports_the_blur_it_was_measured_at(blur):
     p = DetectorParams().resolved(*img.shape)
     verified = find_stacks(img, CAMERA, TargetSpec(), p, DetectionStats())[1]
     assert verified
-    est = exact_measure(img, CAMERA, TargetSpec(), verified[0], 0.05, p.width_tolerance, p.width_slack, p.min_rows)[4]
+    est = exact_measure(img, CAMERA, TargetSpec(), verified[0],
+                        ExactSettings(0.05, 8, p.width_tolerance, p.width_slack, p.min_rows))[4]
     v = verified[0]
     bounds = np.asarray(v.bounds, np.float64)
     assert est is not None and est.blur == rows_blur(img, edge_rows(img, v.rows, bounds), bounds) > 0.3 * blur

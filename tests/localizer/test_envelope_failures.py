@@ -136,7 +136,7 @@ def test_the_compiled_linearized_window_is_the_python_one():
     import cv2
 
     from localizer.detect import SRGB_TO_LINEAR
-    from localizer.measure.exact_pose import exact_measure, exact_measure_lut
+    from localizer.measure.exact_pose import ExactSettings, exact_measure, exact_measure_lut
     from localizer.model.params import DetectionStats, DetectorParams
     from localizer.search.recognize import find_stacks
     from localizer.model.target import TargetSpec
@@ -146,12 +146,12 @@ def test_the_compiled_linearized_window_is_the_python_one():
     p = DetectorParams().resolved(*img.shape)
     v = find_stacks(img, cam, tg, p, DetectionStats())[1][0]
     r0, r1, c0, c1 = box = (int(v.rows[0]) - 20, int(v.rows[-1]) + 21, int(v.bounds[0]) - 15, int(v.bounds[3]) + 16)
-    args = (0.05, p.width_tolerance, p.width_slack, p.min_rows)
-    *compiled, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, cam, tg, v, *args)
+    args = ExactSettings(0.05, 8, p.width_tolerance, p.width_slack, p.min_rows)
+    *compiled, window = exact_measure_lut(img, SRGB_TO_LINEAR, box, cam, tg, v, args)
     by_hand = cv2.LUT(img[r0:r1, c0:c1], SRGB_TO_LINEAR)
     lv = dataclasses.replace(v, rows=v.rows - r0, x=v.x - c0, ends=tuple((a - r0, b - r0) for a, b in v.ends),
                              median_x=v.median_x - c0)
-    python = exact_measure(by_hand, cam.cropped(c0, r0, c1, r1), tg, lv, *args)
+    python = exact_measure(by_hand, cam.cropped(c0, r0, c1, r1), tg, lv, args)
     assert np.array_equal(window, by_hand)
     assert compiled[:4] == list(python[:4]) and compiled[4] is not None
     assert compiled[4].covariance.tolist() == python[4].covariance.tolist()

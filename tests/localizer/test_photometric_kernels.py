@@ -9,7 +9,7 @@ from localizer import Camera, TargetPose, TargetSpec
 from localizer._kernels.blur import ANALYTIC_SD, blur_weights, closed_step, edge_fraction, gauss_cdf_pdf
 from localizer._kernels.photometric import (ITERATIONS, MARGIN_SHARE, MAX_LINES, MIRROR_GIVE_UP, NP, REACH, SIGMA_MAX,
                                             START_ITERATIONS, START_TOL, TOL, evaluate, lm, normal_equations, select)
-from localizer._kernels.records import FitEnds, Intrinsics, TargetConstants
+from localizer._kernels.records import FitEnds, FitRun, Intrinsics, TargetConstants
 from localizer.tools.synthetic import render_frame
 
 DEG = math.pi / 180
@@ -201,14 +201,14 @@ def test_lm_resumes_from_an_end_bit_for_bit(rng):
         p[1] *= 1.01
         args = (obs, sel, intr, tc, True)
         ends = _ends()
-        c, merged = lm(p, *args, np.int64(START_ITERATIONS), START_TOL, ends, 0, np.inf, np.inf, np.int64(-1))
+        c, merged = lm(p, *args, ends, FitRun(START_ITERATIONS, START_TOL, 0, np.inf, np.inf, -1))
         assert merged == -1
         ends.p[0], ends.cost[0] = p, c
         c2, A, g = normal_equations(p, *args, np.empty(obs.size), np.empty((obs.size, NP)))
         assert c2 == c and np.array_equal(A, ends.A[0]) and np.array_equal(g, ends.g[0])
         q1, q2 = p.copy(), p.copy()
-        r1 = lm(q1, *args, np.int64(ITERATIONS), TOL, _ends(), 0, np.inf, np.inf, np.int64(-1))
-        r2 = lm(q2, *args, np.int64(ITERATIONS), TOL, ends, 0, np.inf, np.inf, np.int64(0))
+        r1 = lm(q1, *args, _ends(), FitRun(ITERATIONS, TOL, 0, np.inf, np.inf, -1))
+        r2 = lm(q2, *args, ends, FitRun(ITERATIONS, TOL, 0, np.inf, np.inf, 0))
         assert r1 == r2 and np.array_equal(q1, q2)
 
 
@@ -219,14 +219,14 @@ def test_a_far_worse_start_is_given_up_before_its_first_step(rng):
     p, obs, sel, intr, tc = _setup(rng, 2.0)
     args = (obs, sel, intr, tc, True)
     ends = _ends()
-    c, _ = lm(p, *args, np.int64(START_ITERATIONS), START_TOL, ends, 0, np.inf, np.inf, np.int64(-1))
+    c, _ = lm(p, *args, ends, FitRun(START_ITERATIONS, START_TOL, 0, np.inf, np.inf, -1))
     ends.p[0], ends.cost[0] = p, c
     far = p.copy()
     far[2] = -far[2]  # the mirror orientation
     c0 = evaluate(far, *args, np.empty(obs.size), np.empty((obs.size, NP)), False)
     assert c0 > 2.0 * c
     q = far.copy()
-    assert lm(q, *args, np.int64(START_ITERATIONS), START_TOL, ends, 1, c, 0.5 * c0 / c, np.int64(-1)) == (c0, -2)
+    assert lm(q, *args, ends, FitRun(START_ITERATIONS, START_TOL, 1, c, 0.5 * c0 / c, -1)) == (c0, -2)
     assert np.array_equal(q, far)  # not a step taken
-    lm(q, *args, np.int64(START_ITERATIONS), START_TOL, ends, 1, c, 2.0 * c0 / c, np.int64(-1))
+    lm(q, *args, ends, FitRun(START_ITERATIONS, START_TOL, 1, c, 2.0 * c0 / c, -1))
     assert not np.array_equal(q, far)
