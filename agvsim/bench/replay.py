@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import json
 import statistics
 import tempfile
@@ -32,7 +33,7 @@ FLOOR_RECORD_MB_PER_KM = 200.0
 
 def add_arguments(parser) -> None:
     parser.add_argument("--map", default="plant_floor", help="the demo's map (default: %(default)s)")
-    parser.add_argument("--repeats", type=number(1, integer=True), default=2,
+    parser.add_argument("--repeats", type=number(1, integer=True), default=5,
                         help="interleaved demo runs with and without --record (default: %(default)s)")
 
 
@@ -95,11 +96,14 @@ def run(args) -> dict:
     return {"map": args.map, "distance_m": loop["distance_m"],
             "closed_loop": {"rmse_m": loop["estimate_rmse_m"], "max_m": loop["estimate_max_m"]},
             "track": tracks, "demo_s": plain, "demo_record_s": recorded, "record_share": share,
-            "record_mb_per_km": mb_per_km, "floors": floors}
+            "record_mb_per_km": mb_per_km, "bytecode_written": not os.environ.get("PYTHONDONTWRITEBYTECODE"),
+            "floors": floors}
 
 
 def format_table(r: dict) -> str:
-    lines = [f"agvsim bench replay: the demo's drive on {r['map']} ({r['distance_m']:.0f} m)",
+    m = r.get("machine", {})
+    lines = [f"agvsim bench replay: the demo's drive on {r['map']} ({r['distance_m']:.0f} m); machine: "
+             f"{m.get('cpu_model', '?')} ({m.get('vector_extensions', '?')}), {m.get('cpu_count', '?')} CPUs",
              f"  closed loop (the peer): position RMSE {100 * r['closed_loop']['rmse_m']:.2f} cm, "
              f"max {100 * r['closed_loop']['max_m']:.2f} cm"]
     for fmt, t in r["track"].items():
@@ -107,6 +111,9 @@ def format_table(r: dict) -> str:
                      f"{t['frames']} frames, {t['duration_s']:.0f} s of drive in {t['wall_s']:.1f} s "
                      f"({t['real_time_factor']:.0f}x real time)")
     lines.append(f"  demo {statistics.median(r['demo_s']):.1f} s, with --record "
-                 f"{statistics.median(r['demo_record_s']):.1f} s (medians of {len(r['demo_s'])})")
+                 f"{statistics.median(r['demo_record_s']):.1f} s (medians of {len(r['demo_s'])}, interleaved)")
+    if not r.get("bytecode_written", True):
+        lines.append("  (PYTHONDONTWRITEBYTECODE is set: each process, the recording's too, compiles its Python source "
+                     "anew, which most installs do not; unset it to measure as they run)")
     lines += [floor_line(what, floor, ".2f" if floor["unit"] == "cm" else ".0f") for what, floor in r["floors"].items()]
     return "\n".join(lines)

@@ -41,7 +41,10 @@ def machine_info() -> dict[str, object]:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:
             for line in fh:
                 if line.startswith("model name"):
-                    info["cpu_model"] = line.split(":", 1)[1].strip()
+                    info.setdefault("cpu_model", line.split(":", 1)[1].strip())
+                elif line.startswith("flags"):
+                    flags = line.split(":", 1)[1].split()
+                    info["vector_extensions"] = ("avx512f" in flags and "AVX-512") or ("avx2" in flags and "AVX2") or "other"
                     break
     except OSError:
         pass

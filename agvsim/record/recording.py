@@ -70,14 +70,23 @@ POSES = {"truth": (40, 40, 40), "dead_reckoning": (214, 39, 40), "estimate": (31
 ARROW = 0.4
 #: JPEG quality of ``camera/image``
 JPEG_QUALITY = 85
+#: RGB of the detections' outlines
+DETECTION_COLOR = (255, 200, 0)
 #: s, the shortest time between two logs of the estimate's ellipse
 ELLIPSE_PERIOD = 0.25
 #: steps gathered before the per-step values are sent as columns
 BATCH = 1024
+#: calls a :class:`RunRecording` gathers before it queues them for its process
+CALL_BATCH = 32
+#: camera frames gathered before they are sent as columns (bounds the JPEGs held: a few MB)
+FRAME_BATCH = 64
 
 
 def _empty_rows() -> dict[str, list]:
-    return {"t": [], "sigma": [], "error": [], **{name: [] for name in POSES}}
+    """The per-step values gathered since the last send: each key a column (``t``: s)."""
+    return {"t": [], "sigma": [], "error": [], **{name: [] for name in POSES},
+            "ellipse_t": [], "ellipse": [], "image_t": [], "image": [], "lines_t": [], "lines": [], "labels": [],
+            "text_t": [], "text": [], "fused_t": [], "nis": [], "accepted": []}
 
 
 class MapLayers(NamedTuple):
@@ -223,9 +232,8 @@ class RecordingWriter:
                                   0.0))
             if t >= self._ellipse_due:
                 self._ellipse_due = t + ELLIPSE_PERIOD
-                self.stream.set_time(TIMELINE, duration=t)
-                self.stream.log("world/estimate/covariance", self._rr.LineStrips2D(
-                    [ellipse_points(estimate, cov)], colors=POSES["estimate"]))
+                rows["ellipse_t"].append(t)
+                rows["ellipse"].append(ellipse_points(estimate, cov))
             if "truth" in poses:
                 err = math.hypot(estimate[0] - poses["truth"][0], estimate[1] - poses["truth"][1])
         rows["sigma"].append(sigma)
@@ -251,56 +259,82 @@ class RecordingWriter:
         self._pieces += 1
 
     def _send_rows(self) -> None:
-        """The gathered per-step values, as one column per entity."""
-        rr, rows = self._rr, self._rows
-        if not rows["t"]:
-            return
+        """The gathered per-step values, as one column per entity (a log call per value would cost
+        more than the run)."""
+        rr, rows, send = self._rr, self._rows, self.stream.send_columns
+
+        def time(key):
+            return [rr.TimeColumn(TIMELINE, duration=np.asarray(rows[key], dtype=float))]
+
+        t = np.asarray(rows["t"], dtype=float)
         for name in POSES:
-            pose = np.asarray(rows[name], dtype=float)
+            pose = np.asarray(rows[name], dtype=float).reshape(-1, 3)
             keep = np.isfinite(pose[:, 0])
             if keep.any():
                 p = pose[keep]
-                self.stream.send_columns(f"world/{name}", [rr.TimeColumn(TIMELINE, duration=np.asarray(rows["t"])[keep])],
-                                         rr.Arrows2D.columns(origins=p[:, :2], vectors=ARROW * np.stack(
-                                             [np.cos(p[:, 2]), np.sin(p[:, 2])], axis=1)))
+                send(f"world/{name}", [rr.TimeColumn(TIMELINE, duration=t[keep])], rr.Arrows2D.columns(
+                    origins=p[:, :2], vectors=ARROW * np.stack([np.cos(p[:, 2]), np.sin(p[:, 2])], axis=1)))
         for key, path in (("sigma", "metrics/position_sigma"), ("error", "metrics/position_error")):
             values = np.asarray(rows[key], dtype=float)
             keep = np.isfinite(values)
             if keep.any():
-                self.stream.send_columns(path, [rr.TimeColumn(TIMELINE, duration=np.asarray(rows["t"])[keep])],
-                                         rr.Scalars.columns(scalars=values[keep]))
+                send(path, [rr.TimeColumn(TIMELINE, duration=t[keep])], rr.Scalars.columns(scalars=values[keep]))
+        if rows["ellipse_t"]:
+            send("world/estimate/covariance", time("ellipse_t"), rr.LineStrips2D.columns(
+                strips=rows["ellipse"], colors=[POSES["estimate"]] * len(rows["ellipse"])))
+        if rows["image_t"]:
+            send("camera/image", time("image_t"), rr.EncodedImage.columns(
+                blob=rows["image"], media_type=["image/jpeg"] * len(rows["image"])))
+        if rows["lines_t"]:
+            strips = [s for frame in rows["lines"] for s in frame]
+            labels = [s for frame in rows["labels"] for s in frame]
+            send("camera/detections", time("lines_t"), rr.LineStrips2D.columns(
+                strips=strips, labels=labels, colors=[DETECTION_COLOR] * len(strips)).partition(
+                [len(frame) for frame in rows["lines"]]))
+        if rows["text_t"]:
+            send("camera/detections", time("text_t"), rr.TextLog.columns(text=rows["text"]))
+        if rows["fused_t"]:
+            send("metrics/nis", time("fused_t"), rr.Scalars.columns(
+                scalars=[v for values in rows["nis"] for v in values]).partition([len(v) for v in rows["nis"]]))
+            send("metrics/innovation", time("fused_t"), rr.Scalars.columns(
+                scalars=np.asarray(rows["accepted"], dtype=float)))
         self._rows = _empty_rows()
 
     def frame(self, t: float, image: np.ndarray | None, detections: Iterable = ()) -> None:
         """A camera frame captured at ``t`` (s): ``image`` ((H, W) or (H, W, 3) uint8; None: the
         detections only) and what was found in it (:class:`localizer.TargetObservation`, whose
-        ``measurements`` give the outline; observations without it get the label only)."""
+        ``measurements`` give the outline; observations without it get the label only). Sent
+        :data:`FRAME_BATCH` frames at a time."""
         self._frames += 1
         if (self._frames - 1) % self.every:
             return
-        rr, log = self._rr, self.stream.log
-        self.stream.set_time(TIMELINE, duration=float(t))
+        rows, t = self._rows, float(t)
         if image is not None:
             import cv2
 
             ok, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             if ok:
-                log("camera/image", rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
+                rows["image_t"].append(t)
+                rows["image"].append(jpeg.tobytes())
         detections = list(detections)
         outlines = [detection_outline(d.measurements) for d in detections if getattr(d, "measurements", None)]
         labels = [detection_label(d) for d in detections]
         if len(outlines) == len(detections):
-            log("camera/detections", rr.LineStrips2D(outlines, labels=labels, colors=(255, 200, 0)))
+            rows["lines_t"].append(t)
+            rows["lines"].append(outlines)
+            rows["labels"].append(labels)
         else:
-            log("camera/detections", rr.TextLog("; ".join(labels) or "no target"))
+            rows["text_t"].append(t)
+            rows["text"].append("; ".join(labels) or "no target")
+        if len(rows["image_t"]) >= FRAME_BATCH:
+            self._send_rows()
 
     def fused(self, t: float, nis: Sequence[float], accepted: int) -> None:
         """A frame captured at ``t`` (s) fused: its observations' NIS and how many were accepted."""
-        rr, log = self._rr, self.stream.log
-        self.stream.set_time(TIMELINE, duration=float(t))
-        for value in nis:
-            log("metrics/nis", rr.Scalars(float(value)))
-        log("metrics/innovation", rr.Scalars(float(accepted)))
+        rows = self._rows
+        rows["fused_t"].append(float(t))
+        rows["nis"].append([float(v) for v in nis])
+        rows["accepted"].append(int(accepted))
 
     def close(self) -> None:
         """Write the last trails and flush the file."""
@@ -312,7 +346,7 @@ class RecordingWriter:
 
 
 def _serve(queue, errors, args) -> None:
-    """The recording process: :class:`RecordingWriter` calls from ``queue`` until ``None``; the
+    """The recording process: :class:`RecordingWriter` calls from ``queue`` (lists of them) until ``None``; the
     first error's message on ``errors`` (Ctrl-C is the parent's: it closes the recording)."""
     import signal
 
@@ -324,27 +358,34 @@ def _serve(queue, errors, args) -> None:
         errors.put(f"{args[0]}: {exc}")
         failed = True
     while True:
-        item = queue.get()
-        if item is None:
+        batch = queue.get()
+        if batch is None:
             break
-        if item[0] == "restart":  # (a new file: the last one closed, the same map and thinning)
-            if writer is not None:
-                writer.close()
-            args = (item[1], item[2], *args[2:])
-            writer, failed = None, False
-            item = ("__init__",)
-        if failed:
-            continue
-        try:
-            if item[0] == "__init__":
-                writer = RecordingWriter(*args)
-            else:
-                getattr(writer, item[0])(*item[1:])
-        except Exception as exc:
-            errors.put(f"{args[0]}: {type(exc).__name__}: {exc}")
-            failed = True
+        for item in batch:
+            writer, failed, args = _apply(writer, failed, args, item, errors)
     if writer is not None:
         writer.close()
+
+
+def _apply(writer, failed, args, item, errors):
+    """One queued call on the recording process's writer: ``(writer, failed, args)`` after it."""
+    if item[0] == "restart":  # (a new file: the last one closed, the same map and thinning)
+        if writer is not None:
+            writer.close()
+        args = (item[1], item[2], *args[2:])
+        writer, failed = None, False
+        item = ("__init__",)
+    if failed:
+        return writer, failed, args
+    try:
+        if item[0] == "__init__":
+            writer = RecordingWriter(*args)
+        else:
+            getattr(writer, item[0])(*item[1:])
+    except Exception as exc:
+        errors.put(f"{args[0]}: {type(exc).__name__}: {exc}")
+        failed = True
+    return writer, failed, args
 
 
 class RunRecording:
@@ -379,26 +420,37 @@ class RunRecording:
         self._process = context.Process(target=_serve, args=(self._queue, self._errors,
                                                              (self.path, recording_id, layers, every)),
                                         name="agvsim-recording", daemon=True)
+        self._calls: list[tuple] = []
         self._process.start()
 
     def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
         """:meth:`RecordingWriter.poses`, queued."""
-        self._queue.put(("poses", float(t), {k: tuple(float(v) for v in p) for k, p in poses.items()},
-                         None if covariance is None else np.array(covariance, dtype=float), status))
+        self._put(("poses", float(t), {k: tuple(float(v) for v in p) for k, p in poses.items()},
+                   None if covariance is None else np.array(covariance, dtype=float), status))
 
     def frame(self, t: float, image: np.ndarray | None, detections: Iterable = ()) -> None:
         """:meth:`RecordingWriter.frame`, queued (the image copied)."""
-        self._queue.put(("frame", float(t), None if image is None else np.array(image), tuple(detections)))
+        self._put(("frame", float(t), None if image is None else np.array(image), tuple(detections)))
 
     def fused(self, t: float, nis: Sequence[float], accepted: int) -> None:
         """:meth:`RecordingWriter.fused`, queued."""
-        self._queue.put(("fused", float(t), tuple(float(v) for v in nis), int(accepted)))
+        self._put(("fused", float(t), tuple(float(v) for v in nis), int(accepted)))
+
+    def _put(self, item: tuple) -> None:
+        """Queue one call, :data:`CALL_BATCH` at a time (one pickle and one wake-up of the queue's
+        thread per batch, not per call)."""
+        self._calls.append(item)
+        if len(self._calls) >= CALL_BATCH:
+            self._queue.put(self._calls)
+            self._calls = []
 
     def restart(self, path: str | os.PathLike, recording_id: str) -> None:
         """Close this file and go on in a new one (the same map and thinning; the same process:
         an agent's next episode starts without waiting for Rerun's import)."""
         self.path = os.fspath(path)
-        self._queue.put(("restart", self.path, recording_id))
+        self._calls.append(("restart", self.path, recording_id))
+        self._queue.put(self._calls)
+        self._calls = []
 
     def close(self) -> None:
         """Wait for everything queued to be written, close the file; ``ValueError`` with what the
@@ -407,6 +459,9 @@ class RunRecording:
 
         if self._process is None:
             return
+        if self._calls:
+            self._queue.put(self._calls)
+            self._calls = []
         self._queue.put(None)
         self._queue.close()
         self._queue.join_thread()
