@@ -36,3 +36,14 @@ def numba_kernels():
     for method in ("exact", "thesis"):
         detect_targets(img, cam, method=method)
     detect_targets(img, cam, photometric="all")  # the photometric refinement's kernels
+
+
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler (KeyboardInterrupt) for the test, as in a terminal: an xdist
+    worker ignores SIGINT, so a test that sends itself one would otherwise see nothing happen."""
+    import signal
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)

@@ -6,7 +6,8 @@ under the entity paths of :data:`ENTITY_PATHS`; :class:`LoopRecorder` feeds it f
 environment's episodes, and ``agvsim track --record`` from a logged drive. Open a file with
 ``rerun run.rrd``.
 """
-from agvsim.record.recording import ENTITY_PATHS, TIMELINE, RunRecording
+from agvsim.record.process import RunRecording
+from agvsim.record.recording import ENTITY_PATHS, TIMELINE
 from agvsim.record.observer import LoopRecorder
 from agvsim.record.gym import RerunRecorder
 

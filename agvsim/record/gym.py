@@ -6,7 +6,7 @@ from pathlib import Path
 
 import gymnasium as gym
 
-from agvsim.record.recording import RunRecording
+from agvsim.record.process import RunRecording
 
 __all__ = ["RerunRecorder"]
 

@@ -2,7 +2,7 @@
 after every control step (:func:`agvsim.loop.mission.run_mission`'s ``observer``)."""
 from __future__ import annotations
 
-from agvsim.record.recording import RunRecording
+from agvsim.record.process import RunRecording
 
 __all__ = ["LoopRecorder"]
 

@@ -109,7 +109,7 @@ def test_ctrl_c_reports_the_frames_done(monkeypatch):
 
 
 @pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="SIGINT held back by the thread's signal mask")
-def test_a_ctrl_c_while_a_frame_is_measured_stops_the_run_after_that_frame(monkeypatch):
+def test_a_ctrl_c_while_a_frame_is_measured_stops_the_run_after_that_frame(monkeypatch, python_sigint):
     # the signal, not an exception: held back until the frame is counted, so that no KeyboardInterrupt
     # is raised inside a compiled call (where numba crashes, or raises a SystemError that would be
     # counted as the detector's crash)

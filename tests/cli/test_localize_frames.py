@@ -314,7 +314,8 @@ def test_ctrl_c_keeps_the_rows_of_the_frames_done(video, tmp_path, capsys, monke
 
 
 @pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="SIGINT held back by the thread's signal mask")
-def test_a_ctrl_c_while_a_frame_is_localized_stops_the_run_after_that_frame(video, tmp_path, capsys, monkeypatch):
+def test_a_ctrl_c_while_a_frame_is_localized_stops_the_run_after_that_frame(video, tmp_path, capsys, monkeypatch,
+                                                                            python_sigint):
     # the signal, not an exception: held back until the frame is written, so that no KeyboardInterrupt
     # is raised inside a compiled call (numba returns a kernel's results through Python code, where one
     # crashed the interpreter: test_ctrl_c_on_a_long_video_leaves_whole_lines, 1 run in ~40)
