@@ -124,6 +124,32 @@ def _pictures(args, setup, drive, result) -> dict:
     return files
 
 
+def _recorder(recording, drive, setup):
+    """The ``on_frame`` of :func:`agvsim.replay.track.track` that records each frame: the image and
+    what was found in it, the fusion, and the estimate beside the log's truth (when it has one)
+    and its odometry alone (from a known start); the filter's status when it changes."""
+    from agvsim.replay.track import dead_reckoned, truth_at
+
+    truth = drive.truth if drive.truth is not None and len(drive.truth) > 1 else None
+    reckoned = dead_reckoned(drive, setup)
+    last = [None]
+
+    def on_frame(t, image, found, ekf, res):
+        recording.frame(t, image, found)
+        recording.fused(t, res.nis, res.accepted)
+        poses = {"estimate": ekf.pose()}
+        if truth is not None:
+            poses["truth"] = tuple(truth_at(truth, np.array([t]))[0])
+        if reckoned is not None:
+            times, reckoned_poses = reckoned
+            poses["dead_reckoning"] = tuple(reckoned_poses[max(int(np.searchsorted(times, t, "right")) - 1, 0)])
+        status = ekf.status
+        recording.poses(t, poses, ekf.covariance(), status if status != last[0] else None)
+        last[0] = status
+
+    return on_frame
+
+
 def run(args) -> int:
     from tqdm import tqdm
 
@@ -142,11 +168,7 @@ def run(args) -> int:
         from agvsim.record import RunRecording
 
         recording = RunRecording(args.record, "track", setup.world_map)
-
-        def on_frame(t, image, found, ekf, res):
-            recording.frame(t, image, found)
-            recording.fused(t, res.nis, res.accepted)
-            recording.poses(t, {"estimate": ekf.pose()}, ekf.covariance(), ekf.status)
+        on_frame = _recorder(recording, drive, setup)
     try:
         result = track(drive, setup, progress=lambda k: bar.update(k - bar.n), on_frame=on_frame)
     finally:

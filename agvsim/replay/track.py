@@ -18,7 +18,7 @@ import numpy as np
 from agvsim.replay.drive import DriveLog, VehicleFile, gaps, increments
 from localizer.numeric import wrap_angle
 
-__all__ = ["GAP", "TrackResult", "TrackSetup", "track"]
+__all__ = ["GAP", "TrackResult", "TrackSetup", "dead_reckoned", "track", "truth_at"]
 
 #: s, an odometry interval longer than this is a gap (said once, with their count)
 GAP = 0.5
@@ -87,6 +87,27 @@ class TrackResult:
                 "targets_seen": self.targets_seen, "targets_fused": self.targets_fused,
                 "duration_s": float(self.time[-1] - self.time[0]) if len(self.time) else 0.0,
                 "notes": list(self.notes)}
+
+
+def dead_reckoned(log: DriveLog, setup: TrackSetup) -> tuple[np.ndarray, np.ndarray] | None:
+    """The log's odometry integrated alone from ``setup.start``: ``(t (N,) s, poses (N, 3) x m,
+    y m, θ rad)`` at the odometry's stamps, or None when the start is unknown. The same
+    integration as the simulator's dead reckoning (:class:`agvsim.vehicle.odometry.DeadReckoning`,
+    fed each interval's arc as the wheels of a unit vehicle)."""
+    from agvsim.vehicle.encoders import WheelTicks
+    from agvsim.vehicle.odometry import DeadReckoning
+
+    if setup.start is None:
+        return None
+    t, ds, dth = increments(log, setup.vehicle)
+    # a vehicle of wheel radius 1 m, 1 count per radian and wheelbase 2 m: wheel arcs ds -/+ dθ
+    reckoning = DeadReckoning(setup.start, 1.0, 2.0, 1.0, WheelTicks(0.0, 0.0))
+    left, right = np.cumsum(ds - dth), np.cumsum(ds + dth)
+    poses = np.empty((len(t), 3))
+    for i in range(len(t)):
+        reckoning.update_counts(float(left[i]), float(right[i]))
+        poses[i] = reckoning.pose
+    return t, poses
 
 
 def truth_at(truth: np.ndarray, times: np.ndarray) -> np.ndarray:

@@ -102,6 +102,23 @@ def test_the_recording_holds_every_entity_path_on_sim_time(drive):
     assert {"world/truth", "world/estimate", "camera/image", "metrics/position_error"} <= timed
 
 
+@pytest.mark.slow
+def test_a_tracked_log_recording_holds_truth_dead_reckoning_and_the_error(drive, tmp_path, capfd):
+    from rerun.chunk import RrdReader
+
+    _track(capfd, drive / "log", tmp_path / "track", "--record", str(tmp_path / "track.rrd"), "--no-plots")
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(str(tmp_path / "track.rrd")).stream():
+        path = str(chunk.entity_path).lstrip("/")
+        rows[path] = rows.get(path, 0) + chunk.num_rows
+    frames = rows["camera/image"]
+    assert frames > 100
+    for path in ("world/truth", "world/dead_reckoning", "world/estimate", "metrics/position_error",
+                 "camera/detections", "metrics/nis"):
+        assert rows.get(path) == frames, (path, rows)
+    assert rows["filter/status"] < frames  # (said when it changes)
+
+
 # ------------------------------------------------------------------ messy logs
 def _copy(drive, tmp_path) -> Path:
     log = tmp_path / "log"
