@@ -15,25 +15,49 @@ __all__ = ["CALL_BATCH", "RunRecording"]
 #: calls a :class:`RunRecording` gathers before it queues them for its process
 CALL_BATCH = 32
 def _serve(queue, errors, args) -> None:
-    """The recording process: :class:`RecordingWriter` calls from ``queue`` (lists of them) until ``None``; the
-    first error's message on ``errors`` (Ctrl-C is the parent's: it closes the recording)."""
+    """The recording process: :class:`RecordingWriter` calls from ``queue`` (lists of them) until
+    ``None``; the first error's message on ``errors`` (Ctrl-C is the parent's: it closes the
+    recording)."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    writer, failed = None, False
-    try:
-        writer = RecordingWriter(*args)
-    except Exception as exc:  # (reported to the parent at close)
-        errors.put(f"{args[0]}: {exc}")
-        failed = True
+    state = _start(args, errors)
     while True:
         batch = queue.get()
         if batch is None:
             break
         for item in batch:
-            writer, failed, args = _apply(writer, failed, args, item, errors)
-    if writer is not None:
-        writer.close()
+            state = _apply(*state, item, errors)
+    if state[0] is not None:
+        state[0].close()
+
+
+def _start(args, errors):
+    """``(writer, failed, args)`` of a new recording (its error's message on ``errors``)."""
+    try:
+        return RecordingWriter(*args), False, args
+    except Exception as exc:  # (reported at close)
+        errors.put(f"{args[0]}: {exc}")
+        return None, True, args
+
+
+class _Here:
+    """The recording process's queue, served in this process as each batch is put: for a
+    process that may not start one of its own (a worker of a pool, which is daemonic)."""
+
+    def __init__(self, args) -> None:
+        self.errors: list[str] = []
+        self.state = _start(args, self)
+
+    def put(self, batch) -> None:  # (also the errors' queue: a message)
+        if isinstance(batch, str):
+            self.errors.append(batch)
+        elif batch is None:
+            if self.state[0] is not None:
+                self.state[0].close()
+        else:
+            for item in batch:
+                self.state = _apply(*self.state, item, self)
 
 
 def _apply(writer, failed, args, item, errors):
@@ -72,7 +96,9 @@ class RunRecording:
 
     Use as a context manager, or call :meth:`close` (which waits for everything queued to be
     written and raises ``ValueError`` with what the writing raised). Ctrl-C in the run does not
-    stop the recording process: closing the recording keeps what it holds.
+    stop the recording process: closing the recording keeps what it holds. In a process that
+    may not start another (a pool's worker, as ``agvsim drift`` runs its seeds on), the calls
+    are written in this process instead, a batch at a time.
     """
 
     def __init__(self, path: str | os.PathLike, recording_id: str, world_map=None, every: int = 1) -> None:
@@ -82,14 +108,19 @@ class RunRecording:
 
         self.path = os.fspath(path)
         every = int(check_number("record every", every, low=1, integer=True))
+        layers = None if world_map is None else map_layers(world_map)
+        args = (self.path, recording_id, layers, every)
+        self._calls: list[tuple] = []
+        self._process = None
+        if multiprocessing.current_process().daemon:  # (a pool's worker: written here)
+            self._queue = self._here = _Here(args)
+            return
+        self._here = None
         context = multiprocessing.get_context("spawn")
         self._queue = context.Queue()
         self._errors = context.Queue()
-        layers = None if world_map is None else map_layers(world_map)
-        self._process = context.Process(target=_serve, args=(self._queue, self._errors,
-                                                             (self.path, recording_id, layers, every)),
+        self._process = context.Process(target=_serve, args=(self._queue, self._errors, args),
                                         name="agvsim-recording", daemon=True)
-        self._calls: list[tuple] = []
         self._process.start()
 
     def poses(self, t: float, poses: dict[str, Sequence[float]], covariance=None, status: str | None = None) -> None:
@@ -126,21 +157,25 @@ class RunRecording:
         writing raised."""
         import queue
 
-        if self._process is None:
+        if self._queue is None:
             return
         if self._calls:
             self._queue.put(self._calls)
             self._calls = []
         self._queue.put(None)
-        self._queue.close()
-        self._queue.join_thread()
-        self._process.join()
-        self._process = None
-        try:
-            message = self._errors.get_nowait()
-        except queue.Empty:
-            return
-        raise ValueError(f"the recording failed: {message}")
+        if self._here is not None:
+            message = self._here.errors[0] if self._here.errors else None
+        else:
+            self._queue.close()
+            self._queue.join_thread()
+            self._process.join()
+            try:
+                message = self._errors.get_nowait()
+            except queue.Empty:
+                message = None
+        self._queue = self._process = self._here = None
+        if message is not None:
+            raise ValueError(f"the recording failed: {message}")
 
     def __enter__(self) -> "RunRecording":
         return self

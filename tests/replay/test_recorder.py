@@ -55,3 +55,17 @@ def test_a_recording_that_cannot_be_written_says_so_at_close(tmp_path):
     rec.poses(0.0, {"truth": (0.0, 0.0, 0.0)})
     with pytest.raises(ValueError, match="the recording failed: .*run.rrd"):
         rec.close()
+
+
+@pytest.mark.slow
+def test_drift_on_a_pool_of_workers_records_each_seed(tmp_path):
+    # a pool's workers are daemonic and may not start the recording's process: written there instead
+    from agvsim.cli import main
+
+    rc = main(["drift", "--map", "corridor", "--distance", "20", "--seeds", "2", "--workers", "2", "--no-progress",
+               "--no-plots", "--out", str(tmp_path / "drift"), "--record", str(tmp_path / "drift.rrd")])
+    assert rc == 0
+    for seed in (0, 1):
+        paths, rid = _paths(tmp_path / f"drift-seed{seed:03d}.rrd")
+        assert rid == f"seed-{seed}"
+        assert {"world/truth", "world/estimate", "camera/image", "metrics/position_error"} <= paths, paths
