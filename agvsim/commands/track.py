@@ -109,18 +109,28 @@ def _pictures(args, setup, drive, result) -> dict:
     from agvsim.analysis.plots import error_vs_distance
     from agvsim.analysis.topdown import TopDownView, Trajectory
 
+    from agvsim.replay.track import dead_reckoned
+
+    reckoned = dead_reckoned(drive, setup)  # (the odometry alone, at the estimate's stamps)
     paths = [Trajectory(result.estimate, (40, 90, 220), "estimate")]
     if result.truth is not None:
         paths.insert(0, Trajectory(result.truth, (30, 150, 40), "true"))
-    image = TopDownView(setup.world_map).render(tuple(paths), vehicle_pose=tuple(result.estimate[-1]))
+    if reckoned is not None:
+        paths.insert(0, Trajectory(reckoned[1], (210, 40, 40), "dead reckoning"))
+    # (the vehicle drawn at its last true pose, which the legend says: none without truth)
+    image = TopDownView(setup.world_map).render(
+        tuple(paths), vehicle_pose=None if result.truth is None else tuple(result.truth[-1]))
     files = {"topdown": str(TopDownView.save_png(image, args.out / "topdown.png"))}
     errors = result.errors()
     if errors is not None:
         xy = result.truth[:, :2]
         distance = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
         bound = 2.0 * np.sqrt(np.clip(result.covariance[:, 0, 0] + result.covariance[:, 1, 1], 0, None))
-        files["error_plot"] = str(error_vs_distance(args.out / "error_vs_distance.png", distance,
-                                                    {"estimate": errors}, f"{drive.source}: position error", bound))
+        series = {"estimate": errors}
+        if reckoned is not None:
+            series = {"dead reckoning": np.linalg.norm(reckoned[1][:, :2] - xy, axis=1), **series}
+        files["error_plot"] = str(error_vs_distance(args.out / "error_vs_distance.png", distance, series,
+                                                    f"{drive.source}: position error", bound))
     return files
 
 
