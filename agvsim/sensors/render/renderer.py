@@ -36,7 +36,7 @@ from agvsim.sensors.backends import DEFAULT_BACKEND, check_backend
 from agvsim.sensors.render.gl import GLContext
 from agvsim.sensors.render.lighting import Illumination, lighting_level
 from agvsim.sensors.render.mount import CameraMount, CameraPose, check_pose
-from agvsim.sensors.render.ray_records import BlurScratch, MotionBlurParams, SensorParams
+from agvsim.sensors.render.ray_records import BlurScratch, ColumnBlurScratch, MotionBlurParams, SensorParams
 from agvsim.sensors.render.scene import SceneDescription, build_scene
 from agvsim.sensors.render.truth import FrameTruth, TruthGeometry, frame_truth
 
@@ -140,6 +140,7 @@ class CameraRenderer:
         self._row_buffers = None  # raycast: row-major copies of the frame and motion blur's arrays
         self._frame_buffers = None  # raycast: the frame's radiance and depth, drawn into every frame
         self._columns_u8 = None  # raycast: a block of the 8-bit frame's columns, before they are stored
+        self._column_blur = None  # raycast: the column-major motion blur's work arrays
         if self.backend == "pyrender":
             from agvsim.sensors.render.pyrender_backend import PyrenderBackend
 
@@ -257,6 +258,11 @@ class CameraRenderer:
         if moving:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time, z_min=nearest_depth(depth.T))
+        if motion is not None and not optics:
+            # blurred in the raycaster's column-major layout and exposed as it is blurred (nothing
+            # transposed, the blurred radiance never stored)
+            return self._blurred_columns(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]),
+                                         self._sensor_params(conditions, rng)), depth
         if motion is not None or optics:
             if self._row_buffers is None:  # row-major copies, the blurred frame, the blur's work arrays
                 self._row_buffers = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
@@ -279,6 +285,20 @@ class CameraRenderer:
                 self._columns_u8 = expose_scratch(c.height)
             expose_columns(radiance.T, params, image, self._columns_u8)
         return image, depth
+
+    def _blurred_columns(self, radiance: np.ndarray, depth: np.ndarray, blur: MotionBlurParams,
+                         params: SensorParams) -> np.ndarray:
+        """The ``(H, W)`` uint8 frame of the column-major ``radiance`` and ``depth`` (``(H, W)``
+        float32, Fortran order) blurred by ``blur`` and exposed with ``params``
+        (:func:`~agvsim.sensors.render._motion_blur_columns.blur_columns`): a new array."""
+        from agvsim.sensors.render._motion_blur_columns import blur_columns
+
+        c = self.camera
+        if self._column_blur is None:
+            self._column_blur = ColumnBlurScratch.of(c.height, c.width)
+        image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
+        blur_columns(radiance.T, depth.T, blur, radiance.T, self._column_blur, params, image)
+        return image
 
     def _sensor_params(self, conditions: RenderConditions, rng: np.random.Generator | None) -> SensorParams:
         """The sensor's constants for one frame: its noise seed drawn from ``rng`` (None: no noise)."""
