@@ -14,6 +14,8 @@
   exact horizontal integral, rows blended at the path's midpoint) on textured scenes with
   yaw, sideways and forward motion, far pixels, paths clipped at the image sides, paths
   within one pixel, and vertical smears longer than the ring of prefix rows;
+* ``blur_columns`` (the raycaster's frames, column-major) equals the same model, and its frame
+  exposed as it is blurred is ``expose_columns`` of the blurred radiance bit for bit;
 * ``nearest_depth`` is the smallest positive depth; ``transpose_into`` gives the row-major
   frame of a column-major one (whole 8 x 8 blocks and the rows and columns past them).
 """
@@ -26,6 +28,7 @@ import pytest
 from scipy.special import ndtr
 
 from agvsim.sensors.render import sensor as sn
+from agvsim.sensors.render._motion_blur_columns import blur_columns
 from agvsim.sensors.render._motion_blur_kernels import motion_blur, transpose_into
 from agvsim.sensors.render._sensor_kernels import (
     expose,
@@ -36,6 +39,7 @@ from agvsim.sensors.render._sensor_kernels import (
 )
 from agvsim.sensors.render.ray_records import (
     BlurScratch,
+    ColumnBlurScratch,
     MotionBlurParams,
     SensorParams,
 )
@@ -278,3 +282,45 @@ def test_blur_scratch_checks_its_sizes():
         BlurScratch.of(10, 10, ring_rows=12)
     with pytest.raises(ValueError, match="height >= 2"):
         BlurScratch.of(1, 10)
+
+
+# ------------------------------------------------------------------ column-major motion blur
+@pytest.mark.parametrize("v,omega,t", MOTIONS)
+def test_column_blur_equals_its_model_and_is_exposed_as_expose_columns(v, omega, t):
+    """``blur_columns`` of the column-major frame: the row-major kernel's model (float32 prefix
+    sums: the same bound), and exposed as it is blurred, bit for bit ``expose_columns`` of the
+    blurred radiance it stores (with noise: the same counter per column)."""
+    camera = Camera(300.0, 310.0, 80.3, 59.6, 161, 121)
+    radiance, depth = _scene(121, 161, 11)
+    params = _params(camera, radiance, depth, v, omega, t)
+    expected = blur_model(radiance, depth, params)
+    rt, dt = np.ascontiguousarray(radiance.T), np.ascontiguousarray(depth.T)
+    scratch = ColumnBlurScratch.of(121, 161)
+    out_t = np.full((161, 121), np.nan, np.float32)
+    sensor = SensorParams(200.0, 5.0, 20000.0 / 255.0, 0.8, 1.0, 12345)
+    blur_columns(rt, dt, params, out_t, scratch, sensor, np.zeros((0, 0), np.uint8))
+    assert np.max(np.abs(out_t.T - expected)) < 2e-5 * radiance.max()
+    image = np.empty((121, 161), np.uint8)
+    untouched = out_t.copy()
+    blur_columns(rt, dt, params, out_t, scratch, sensor, image)
+    assert np.array_equal(out_t, untouched)  # exposed: the radiance is not stored
+    reference = np.empty_like(image)
+    expose_columns(untouched, sensor, reference, expose_scratch(121))
+    assert np.array_equal(image, reference)
+
+
+def test_column_blur_keeps_a_uniform_scene_uniform():
+    camera = Camera(300.0, 300.0, 80.0, 60.0, 160, 120)
+    _, depth = _scene(120, 160, 3)
+    radiance = np.full((120, 160), 0.7, np.float32)
+    out_t = np.empty((160, 120), np.float32)
+    blur_columns(radiance.T.copy(), depth.T.copy(), _params(camera, radiance, depth, (0.3, 0.0, 1.0),
+                                                            (0.0, 0.6, 0.1), 0.02),
+                 out_t, ColumnBlurScratch.of(120, 160), SensorParams(1.0, 0.0, 1.0, 0.0, 0.0, 0),
+                 np.zeros((0, 0), np.uint8))
+    assert np.max(np.abs(out_t - 0.7)) < 1e-5 * 0.7  # float32 prefix sums of the rows
+
+
+def test_column_blur_scratch_checks_its_sizes():
+    with pytest.raises(ValueError, match="height >= 2"):
+        ColumnBlurScratch.of(1, 10)
