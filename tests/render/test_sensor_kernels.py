@@ -10,10 +10,12 @@
   of a one-column frame, the counter advanced past the columns before it (every pixel its own
   draws), the 8 x 8 block stores and the odd sizes included; without noise it is ``expose`` of
   the row-major frame;
-* ``motion_blur`` equals a float64 NumPy evaluation of its model (path ends by projection,
-  exact horizontal integral, rows blended at the path's midpoint) on textured scenes with
-  yaw, sideways and forward motion, far pixels, paths clipped at the image sides, paths
-  within one pixel, and vertical smears longer than the ring of prefix rows;
+* ``blur_columns`` (motion blur of the raycaster's column-major frames) equals a float64 NumPy
+  evaluation of its model (path ends by projection, exact horizontal integral, rows blended at
+  the path's midpoint) on textured scenes with yaw, sideways and forward motion, far pixels,
+  paths clipped at the image sides, paths within one pixel, and long vertical smears (a fast
+  roll); its frame exposed as it is blurred is ``expose_columns`` of the blurred radiance bit
+  for bit;
 * ``nearest_depth`` is the smallest positive depth; ``transpose_into`` gives the row-major
   frame of a column-major one (whole 8 x 8 blocks and the rows and columns past them).
 """
@@ -26,7 +28,7 @@ import pytest
 from scipy.special import ndtr
 
 from agvsim.sensors.render import sensor as sn
-from agvsim.sensors.render._motion_blur_kernels import motion_blur, transpose_into
+from agvsim.sensors.render._motion_blur_kernels import blur_columns, transpose_into
 from agvsim.sensors.render._sensor_kernels import (
     expose,
     expose_columns,
@@ -197,7 +199,7 @@ def test_nearest_depth():
 
 # ------------------------------------------------------------------ motion blur
 def blur_model(radiance: np.ndarray, depth: np.ndarray, p: MotionBlurParams) -> np.ndarray:
-    """The model of ``motion_blur`` in float64 NumPy."""
+    """The model of ``blur_columns`` in float64 NumPy (``(H, W)`` frames)."""
     h, w = radiance.shape
     jj, ii = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     z = np.where(depth > 0, depth, 1e3).astype(float)
@@ -252,29 +254,43 @@ MOTIONS = [
 
 
 @pytest.mark.parametrize("v,omega,t", MOTIONS)
-def test_motion_blur_equals_its_model(v, omega, t):
+def test_motion_blur_equals_its_model_and_is_exposed_as_expose_columns(v, omega, t):
+    """``blur_columns`` of the column-major frame: its model (float32 prefix sums), and exposed as
+    it is blurred, bit for bit ``expose_columns`` of the blurred radiance it stores (with noise:
+    the same counter per column)."""
     camera = Camera(300.0, 310.0, 80.3, 59.6, 161, 121)
     radiance, depth = _scene(121, 161, 11)
     params = _params(camera, radiance, depth, v, omega, t)
     expected = blur_model(radiance, depth, params)
-    for scratch in (BlurScratch.of(121, 161), BlurScratch.of(121, 161, ring_rows=4)):  # 4: the ring overflows
-        out = np.empty_like(radiance)
-        motion_blur(radiance, depth, params, out, scratch)
-        assert np.max(np.abs(out - expected)) < 2e-5 * radiance.max()
+    rt, dt = np.ascontiguousarray(radiance.T), np.ascontiguousarray(depth.T)
+    scratch = BlurScratch.of(121, 161)
+    out_t = np.full((161, 121), np.nan, np.float32)
+    sensor = SensorParams(200.0, 5.0, 20000.0 / 255.0, 0.8, 1.0, 12345)
+    blur_columns(rt, dt, params, out_t, scratch, sensor, np.zeros((0, 0), np.uint8))
+    assert np.max(np.abs(out_t.T - expected)) < 2e-5 * radiance.max()
+    image = np.empty((121, 161), np.uint8)
+    untouched = out_t.copy()
+    blur_columns(rt, dt, params, out_t, scratch, sensor, image)
+    assert np.array_equal(out_t, untouched)  # exposed: the radiance is not stored
+    reference = np.empty_like(image)
+    expose_columns(untouched, sensor, reference, expose_scratch(121))
+    assert np.array_equal(image, reference)
 
 
 def test_motion_blur_keeps_a_uniform_scene_uniform():
     camera = Camera(300.0, 300.0, 80.0, 60.0, 160, 120)
     _, depth = _scene(120, 160, 3)
     radiance = np.full((120, 160), 0.7, np.float32)
-    out = np.empty_like(radiance)
-    motion_blur(radiance, depth, _params(camera, radiance, depth, (0.3, 0.0, 1.0), (0.0, 0.6, 0.1), 0.02),
-                out, BlurScratch.of(120, 160))
-    assert np.max(np.abs(out - 0.7)) < 1e-5 * 0.7  # float32 prefix sums of the rows
+    out_t = np.empty((160, 120), np.float32)
+    blur_columns(radiance.T.copy(), depth.T.copy(), _params(camera, radiance, depth, (0.3, 0.0, 1.0),
+                                                            (0.0, 0.6, 0.1), 0.02),
+                 out_t, BlurScratch.of(120, 160), SensorParams(1.0, 0.0, 1.0, 0.0, 0.0, 0),
+                 np.zeros((0, 0), np.uint8))
+    assert np.max(np.abs(out_t - 0.7)) < 1e-5 * 0.7  # float32 prefix sums of the rows
 
 
 def test_blur_scratch_checks_its_sizes():
-    with pytest.raises(ValueError, match="power-of-2"):
-        BlurScratch.of(10, 10, ring_rows=12)
     with pytest.raises(ValueError, match="height >= 2"):
         BlurScratch.of(1, 10)
+    with pytest.raises(ValueError, match="width >= 1"):
+        BlurScratch.of(10, 0)

@@ -1,46 +1,46 @@
-"""Compiled motion blur of the raycast backend (:func:`motion_blur`).
+"""Compiled motion blur of the raycast backend (:func:`blur_columns`), on the frame as the raycaster
+draws it: column-major (column ``j`` at ``radiance_t[j]``, contiguous), exposed as it is blurred.
 
 The model of :func:`agvsim.sensors.render.sensor.motion_blur` (which the pyrender backend runs
 in NumPy and OpenCV): each pixel averages the scene along the path its scene point takes
 across the image during the exposure (static scene, the camera's twist, the pixel's depth);
 the path's horizontal extent is integrated exactly (row prefix sums), its vertical position
 is taken at the path's midpoint (a level camera moving in the floor plane smears rows
-sideways; the vertical drift is a small fraction of a pixel at AGV speeds). Per image row,
-in float32: every pixel's path (vectorised), then runs of pixels whose paths start and end
-at the same offsets read contiguous memory (vectorised; gathers are no faster than scalar
-loads here, and a loop that gathers and stores does not vectorise). Row prefix sums are
-kept for a ring of rows; their float32 rounding leaves the result within about 1e-5 of the
-frame's maximum of the float64 model (tested at 2e-5).
+sideways; the vertical drift is a small fraction of a pixel at AGV speeds), rows
+``floor(ym)`` and ``floor(ym) + 1`` blended linearly. In float32:
 
-Images are ``(H, W)`` float32 (radiance, depth in m along the optical axis, 0 = far),
-C-contiguous.
+* every image row's prefix sums are one pass over the columns, ``prefix[j + 1] = prefix[j] +
+  radiance_t[j]`` (a column at a time, vectorised down it: the same float32 additions, in the
+  same order, as a row's running sum);
+* each output column's paths are computed down the column (vectorised); a level camera's wall
+  column has one depth, so its pixels' paths start and end in the same columns: runs of pixels
+  with the same offsets (and the same drift of the path's row from the pixel's) read contiguous
+  memory of two columns of the radiance and two of the prefix sums (vectorised; gathers are no
+  faster than scalar loads here, and a loop that gathers and stores does not vectorise);
+* the blurred column is exposed by the sensor into a block of columns and stored in the 8-bit
+  frame a block at a time, exactly as
+  :func:`~agvsim.sensors.render._sensor_kernels.expose_columns` exposes a column-major frame (the
+  same noise counter per column): the blurred radiance is never stored, and neither the
+  radiance nor the depth is transposed (a row-major kernel needs both transposed first, and its
+  output exposed in a pass of its own: 0.5 ms a frame of 512 x 480 more, measured).
+
+The float32 prefix sums leave the result within about 1e-5 of the frame's maximum of the
+float64 model (tested at 2e-5). Images are ``(W, H)`` float32 (the transposes of ``(H, W)``
+frames: radiance, depth in m along the optical axis, 0 = far), C-contiguous.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba.cpython.unsafe.numbers import trailing_zeros
 
+from agvsim.sensors.render._sensor_kernels import column_counter, expose_flat, store_columns
 from agvsim.sensors.render.kernel_jit import frame_kernel, helper
+from agvsim.sensors.render.ray_records import EXPOSE_BLOCK
 
-__all__ = ["motion_blur", "transpose_into"]
+__all__ = ["blur_columns", "transpose_into"]
 
 _F = np.float32
 _ONE, _ZERO = _F(1.0), _F(0.0)
-
-
-@helper
-def _ensure_row(radiance, scratch, r):
-    """Image row ``r``'s prefix sums in its ring slot (computed if missing, evicting row ``r - K``)."""
-    slot = r & (scratch.prefix.shape[0] - 1)
-    if scratch.ring_row[slot] != r:
-        q = scratch.prefix[slot]
-        x = radiance[r]
-        acc = _ZERO
-        q[0] = acc
-        for j in range(x.size):
-            acc += x[j]
-            q[j + 1] = acc
-        scratch.ring_row[slot] = r
 
 
 @helper
@@ -57,56 +57,27 @@ def _next_break(breaks64, j, w):
 
 
 @helper
-def _run(orow, weights, x0, x1, p0, p1, js, n, o0, o1):
-    """Pixels ``js .. js + n - 1`` of one output row whose paths start in pixel ``j + o0`` and end in
-    pixel ``j + o1`` of image rows ``x0`` and ``x1`` (prefix sums ``p0``, ``p1``): the first pixel's
-    share, the whole pixels between (prefix sums), the last pixel's share, rows blended
-    (``weights``: :attr:`~agvsim.sensors.render.ray_records.BlurScratch.weights`). A path within
-    one pixel (``o1 == o0``) takes that pixel's value (the prefix term dropped exactly)."""
-    g0 = weights[0]
-    f1 = weights[1]
-    w0 = weights[2]
-    w1 = weights[3]
-    same = _ONE if o1 == o0 else _ZERO
-    span = _ONE - same
-    for t in range(n):
-        j = np.uint64(js + t)
-        u = np.uint64(js + t + o0)
-        v = np.uint64(js + t + o1)
-        u1 = u + np.uint64(1)
-        g = g0[j] - same
-        s0 = g * x0[u] + f1[j] * x0[v] + (p0[v] - p0[u1]) * span
-        s1 = g * x1[u] + f1[j] * x1[v] + (p1[v] - p1[u1]) * span
-        orow[j] = s0 * w0[j] + s1 * w1[j]
+def _prefix_columns(radiance_t, prefix):
+    """``prefix[j, i]``: the sum of pixels ``0 .. j - 1`` of image row ``i`` (``prefix`` ``(W + 1, H)``
+    float32), a column at a time (vectorised down the columns)."""
+    w, h = radiance_t.shape
+    p0 = prefix[0]
+    for i in range(np.uint64(h)):
+        p0[i] = _ZERO
+    for j in range(np.uint64(w)):
+        src = radiance_t[j]
+        a = prefix[j]
+        b = prefix[j + np.uint64(1)]
+        for i in range(np.uint64(h)):
+            b[i] = a[i] + src[i]
 
 
 @helper
-def _row_runs(radiance, scratch, orow, ensure):
-    """:func:`motion_blur`'s runs of one row: pixels whose paths start and end at the same offsets
-    and rows read contiguous memory (vectorised). With ``ensure`` each run computes the prefix
-    rows it needs first (the caller has not: the row's paths reach more rows than the ring holds)."""
-    w = orow.size
-    mask = scratch.prefix.shape[0] - 1
-    o0s, o1s, rows = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
-    breaks64 = scratch.breaks.view(np.uint64)
-    js = np.int64(0)
-    while js < w:
-        je = _next_break(breaks64, js, w)
-        r = np.int64(rows[js])
-        if ensure:
-            _ensure_row(radiance, scratch, r)
-            _ensure_row(radiance, scratch, r + 1)
-        _run(orow, scratch.weights, radiance[r], radiance[r + 1], scratch.prefix[r & mask],
-             scratch.prefix[(r + 1) & mask], js, je - js, np.int64(o0s[js]), np.int64(o1s[js]))
-        js = je
-
-
-@helper
-def _row_paths(radiance, depth, params, i, scratch):
-    """Every pixel's path in row ``i`` (vectorised) into ``scratch.offsets`` and ``scratch.weights``
-    (:class:`~agvsim.sensors.render.ray_records.BlurScratch`), and where the offsets change into
-    ``scratch.breaks``; returns the first and last image row the paths start in."""
-    h, w = radiance.shape
+def _column_paths(depth_t, params, j, scratch):
+    """Every pixel's path in column ``j`` (vectorised down it) into ``scratch.offsets`` and
+    ``scratch.weights`` (:class:`~agvsim.sensors.render.ray_records.BlurScratch`), and where
+    the offsets change into ``scratch.breaks``."""
+    w, h = depth_t.shape
     fx, fy, cx, cy = params.fx, params.fy, params.cx, params.cy
     ra, rb = params.rot_a, params.rot_b
     # fx x and fy y / 2 (the ends' image offsets from (cx, cy) times z); pixel j covers x in [j, j + 1)
@@ -115,37 +86,36 @@ def _row_paths(radiance, depth, params, i, scratch):
     cx5, cy32 = _F(cx + 0.5), _F(cy)
     eps, far = _F(1e-3), _F(1e3)
     kmax0, kmax, ymax = _F(w - 1e-3), _F(w), _F(h - 1.0)
-    o0s, o1s, rows = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
+    o0s, o1s, drift = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
     g0s, f1s, w0s, w1s = scratch.weights[0], scratch.weights[1], scratch.weights[2], scratch.weights[3]
-    breaks = scratch.breaks
-    # the point of pixel (i, j) at depth z is z (x_n(j), y_n, 1) at mid-exposure; each row of
-    # rot . (x_n(j), y_n, 1) is c0 + c1 j along the image row
-    yn = (i - cy) / fy
-    xa0 = _F(fx * (ra[0, 1] * yn + ra[0, 2]) - ra[0, 0] * cx)
-    xa1 = _F(ra[0, 0])
-    ya0 = _F(0.5 * fy * (ra[1, 1] * yn + ra[1, 2] - ra[1, 0] * cx / fx))
-    ya1 = _F(0.5 * fy * ra[1, 0] / fx)
-    za0 = _F(ra[2, 1] * yn + ra[2, 2] - ra[2, 0] * cx / fx)
-    za1 = _F(ra[2, 0] / fx)
-    xb0 = _F(fx * (rb[0, 1] * yn + rb[0, 2]) - rb[0, 0] * cx)
-    xb1 = _F(rb[0, 0])
-    yb0 = _F(0.5 * fy * (rb[1, 1] * yn + rb[1, 2] - rb[1, 0] * cx / fx))
-    yb1 = _F(0.5 * fy * rb[1, 0] / fx)
-    zb0 = _F(rb[2, 1] * yn + rb[2, 2] - rb[2, 0] * cx / fx)
-    zb1 = _F(rb[2, 0] / fx)
-    drow = depth[i]
-    jf = _ZERO
-    rmin = np.int32(h)
-    rmax = np.int32(0)
-    for j in range(w):  # each pixel's path (vectorised)
-        z = drow[j]
+    # the point of pixel (i, j) at depth z is z (x_n, y_n(i), 1) at mid-exposure; each row of
+    # rot . (x_n, y_n(i), 1) is c0 + c1 i down the column
+    xn = (j - cx) / fx
+    c = -cy / fy
+    xa0 = _F(fx * (ra[0, 0] * xn + ra[0, 2] + ra[0, 1] * c))
+    xa1 = _F(fx * ra[0, 1] / fy)
+    ya0 = _F(0.5 * fy * (ra[1, 0] * xn + ra[1, 2] + ra[1, 1] * c))
+    ya1 = _F(0.5 * ra[1, 1])
+    za0 = _F(ra[2, 0] * xn + ra[2, 2] + ra[2, 1] * c)
+    za1 = _F(ra[2, 1] / fy)
+    xb0 = _F(fx * (rb[0, 0] * xn + rb[0, 2] + rb[0, 1] * c))
+    xb1 = _F(fx * rb[0, 1] / fy)
+    yb0 = _F(0.5 * fy * (rb[1, 0] * xn + rb[1, 2] + rb[1, 1] * c))
+    yb1 = _F(0.5 * rb[1, 1])
+    zb0 = _F(rb[2, 0] * xn + rb[2, 2] + rb[2, 1] * c)
+    zb1 = _F(rb[2, 1] / fy)
+    dcol = depth_t[j]
+    ji = np.int32(j)
+    fi = _ZERO
+    for i in range(h):  # each pixel's path (vectorised)
+        z = dcol[i]
         z = z if z > _ZERO else far
-        pxa = z * (xa0 + xa1 * jf) + ta0
-        pya = z * (ya0 + ya1 * jf) + ta1
-        pza = max(z * (za0 + za1 * jf) + ta2, eps)
-        pxb = z * (xb0 + xb1 * jf) + tb0
-        pyb = z * (yb0 + yb1 * jf) + tb1
-        pzb = max(z * (zb0 + zb1 * jf) + tb2, eps)
+        pxa = z * (xa0 + xa1 * fi) + ta0
+        pya = z * (ya0 + ya1 * fi) + ta1
+        pza = max(z * (za0 + za1 * fi) + ta2, eps)
+        pxb = z * (xb0 + xb1 * fi) + tb0
+        pyb = z * (yb0 + yb1 * fi) + tb1
+        pzb = max(z * (zb0 + zb1 * fi) + tb2, eps)
         q = _ONE / (pza * pzb)
         qa = pzb * q
         qb = pza * q
@@ -157,52 +127,99 @@ def _row_paths(radiance, depth, params, i, scratch):
         r0 = min(np.int32(ym), np.int32(h - 2))
         a0 = np.int32(k0)
         a1 = min(np.int32(k1), np.int32(w - 1))
-        ji = np.int32(j)
-        o0s[j] = a0 - ji
-        o1s[j] = a1 - ji
-        rows[j] = r0
-        rmin = min(rmin, r0)
-        rmax = max(rmax, r0)
+        o0s[i] = a0 - ji
+        o1s[i] = a1 - ji
+        drift[i] = r0 - np.int32(i)
         fr = ym - _F(r0)
         inv = _ONE / (k1 - k0)
-        g0s[j] = (_F(a0) + _ONE) - k0
-        f1s[j] = k1 - _F(a1)
-        w0s[j] = (_ONE - fr) * inv
-        w1s[j] = fr * inv
-        jf += _ONE
+        g0s[i] = (_F(a0) + _ONE) - k0
+        f1s[i] = k1 - _F(a1)
+        w0s[i] = (_ONE - fr) * inv
+        w1s[i] = fr * inv
+        fi += _ONE
+    breaks = scratch.breaks
     breaks[0] = 1
-    for j in range(1, w):
-        breaks[j] = (o0s[j] != o0s[j - 1]) | (o1s[j] != o1s[j - 1]) | (rows[j] != rows[j - 1])
-    return rmin, rmax
+    for i in range(1, h):
+        breaks[i] = (o0s[i] != o0s[i - 1]) | (o1s[i] != o1s[i - 1]) | (drift[i] != drift[i - 1])
+
+
+@helper
+def _run(out, weights, xu, xv, pu1, pv, i0, n, d, same):
+    """Pixels ``i0 .. i0 + n - 1`` of one output column whose paths start in column ``u`` and end in
+    column ``v`` (radiance ``xu``, ``xv``; prefix sums ``pu1 = prefix[u + 1]``, ``pv = prefix[v]``),
+    rows ``i + d`` and ``i + d + 1`` blended: the first pixel's share, the whole pixels between
+    (prefix sums), the last pixel's share. A path within one pixel (``same``: ``u == v``) takes that
+    pixel's value (the prefix term dropped exactly)."""
+    g0 = weights[0]
+    f1 = weights[1]
+    w0 = weights[2]
+    w1 = weights[3]
+    sm = _ONE if same else _ZERO
+    span = _ONE - sm
+    for t in range(n):
+        i = np.uint64(i0 + t)
+        r = np.uint64(i0 + t + d)
+        r1 = r + np.uint64(1)
+        g = g0[i] - sm
+        s0 = g * xu[r] + f1[i] * xv[r] + (pv[r] - pu1[r]) * span
+        s1 = g * xu[r1] + f1[i] * xv[r1] + (pv[r1] - pu1[r1]) * span
+        out[i] = s0 * w0[i] + s1 * w1[i]
+
+
+@helper
+def _column_runs(radiance_t, scratch, j, out):
+    """Column ``j`` blurred into ``out`` (``(H,)`` float32): its runs of pixels whose paths start and
+    end in the same columns, at the same drift of rows (contiguous memory, vectorised)."""
+    h = out.size
+    o0s, o1s, drift = scratch.offsets[0], scratch.offsets[1], scratch.offsets[2]
+    breaks64 = scratch.breaks.view(np.uint64)
+    prefix = scratch.prefix
+    i0 = np.int64(0)
+    while i0 < h:
+        ie = _next_break(breaks64, i0, h)
+        u = j + np.int64(o0s[i0])
+        v = j + np.int64(o1s[i0])
+        _run(out, scratch.weights, radiance_t[u], radiance_t[v], prefix[u + 1], prefix[v], i0, ie - i0,
+             np.int64(drift[i0]), u == v)
+        i0 = ie
 
 
 @frame_kernel
-def motion_blur(radiance, depth, params, out, scratch):
-    """Average each pixel along its scene point's image path between the exposure's ends.
+def blur_columns(radiance_t, depth_t, params, out_t, scratch, sensor, image):
+    """Average each pixel of a column-major frame along its scene point's image path between the
+    exposure's ends (module docstring).
 
     The path of pixel ``(i, j)`` runs from ``x0`` to ``x1`` (the point's image x at the two ends,
     clipped to the image, at least 1e-3 px apart) at row ``ym`` (the mean of the ends' rows): the
-    output is the mean of the row, piecewise constant over its pixels, over ``x0 .. x1``, rows
-    ``floor(ym)`` and ``floor(ym) + 1`` blended linearly.
+    blurred pixel is the mean of the row, piecewise constant over its pixels, over ``x0 .. x1``,
+    rows ``floor(ym)`` and ``floor(ym) + 1`` blended linearly.
 
     Args:
-        radiance, depth: ``(H, W)`` float32 (depth m along the axis, 0 = far), ``H >= 2``.
+        radiance_t, depth_t: ``(W, H)`` float32, C-contiguous: column ``j`` of the ``(H, W)`` frame
+            at ``[j]`` (radiance; depth m along the axis, 0 = far), ``H >= 2``.
         params: :class:`~agvsim.sensors.render.ray_records.MotionBlurParams`.
-        out: ``(H, W)`` float32, written (not ``radiance``).
+        out_t: ``(W, H)`` float32, C-contiguous, out (not ``radiance_t``): the blurred radiance,
+            column-major, when ``image`` is ``(0, 0)``; else not written.
         scratch: :class:`~agvsim.sensors.render.ray_records.BlurScratch` for ``(H, W)``.
+        sensor, image: ``image`` ``(H, W)`` uint8, C-contiguous, out: the blurred frame exposed by
+            the sensor (:class:`~agvsim.sensors.render.ray_records.SensorParams` ``sensor``) as
+            :func:`~agvsim.sensors.render._sensor_kernels.expose_columns` exposes the blurred
+            radiance (bit for bit); or ``(0, 0)``: the radiance is stored in ``out_t``.
     """
-    h, w = radiance.shape
-    scratch.breaks[w:] = 1
-    scratch.ring_row[:] = -1
-    for i in range(h):
-        rmin, rmax = _row_paths(radiance, depth, params, i, scratch)
-        fits = rmax + 1 - rmin < scratch.prefix.shape[0]
-        if fits:
-            # every row this row's paths reach fits the ring at once (always, but for vertical smears
-            # of about the ring's size)
-            for r in range(rmin, rmax + 2):
-                _ensure_row(radiance, scratch, r)
-        _row_runs(radiance, scratch, out[i], not fits)
+    w, h = radiance_t.shape
+    exposed = image.shape[0] > 0
+    _prefix_columns(radiance_t, scratch.prefix)
+    scratch.breaks[h:] = 1
+    cols = scratch.exposed
+    for j in range(w):
+        col = scratch.column if exposed else out_t[j]
+        _column_paths(depth_t, params, j, scratch)
+        _column_runs(radiance_t, scratch, np.int64(j), col)
+        if exposed:
+            q = j % EXPOSE_BLOCK
+            expose_flat(col, cols[q, :h], sensor, column_counter(sensor, h, j))
+            if q == EXPOSE_BLOCK - 1 or j == w - 1:
+                store_columns(cols, j - q, q + 1, image)
 
 
 @frame_kernel

@@ -250,26 +250,26 @@ class MotionBlurParams(NamedTuple):
 
 
 class BlurScratch(NamedTuple):
-    """Work arrays of the motion blur for one image size, allocated once (:meth:`of`) and
-    overwritten by every frame: the prefix sums of a ring of ``K`` image rows, and the current
-    row's per-pixel paths."""
+    """Work arrays of the column-major motion blur
+    (:func:`~agvsim.sensors.render._motion_blur_kernels.blur_columns`) for one image size,
+    allocated once (:meth:`of`) and overwritten by every frame: every image row's prefix sums,
+    stored a column at a time, and the current column's per-pixel paths."""
 
-    prefix: np.ndarray  # (K, W + 1) float32, prefix[s, j] = sum of pixels 0 .. j - 1 of the row in slot s
-    ring_row: np.ndarray  # (K,) int64, image row held by each slot (-1: none); K a power of 2
-    offsets: np.ndarray  # (3, W) int32, per pixel j: floor(x0) - j, floor(x1) - j, first path row
-    weights: np.ndarray  # (4, W) float32, per pixel: shares of the path's first and last pixel, row weights / length
-    breaks: np.ndarray  # (W + 8 rounded up to a multiple of 8,) uint8, 1 where the offsets change
+    prefix: np.ndarray  # (W + 1, H) float32, prefix[j, i] = sum of pixels 0 .. j - 1 of image row i
+    offsets: np.ndarray  # (3, H) int32, per pixel i of the column j: floor(x0) - j, floor(x1) - j, first path row - i
+    weights: np.ndarray  # (4, H) float32, per pixel: shares of the path's first and last pixel, row weights / length
+    breaks: np.ndarray  # (H + 8 rounded up to a multiple of 8,) uint8, 1 where the offsets change down the column
+    column: np.ndarray  # (H,) float32: the blurred column, when the frame is exposed as it is blurred
+    exposed: np.ndarray  # (EXPOSE_BLOCK, H rounded up to 8) uint8: a block of exposed columns, likewise
 
     @classmethod
-    def of(cls, height: int, width: int, ring_rows: int = 32) -> BlurScratch:
-        """Scratch for ``(height, width)`` images (``ring_rows`` a power of 2: rows whose paths span
-        fewer than ``ring_rows - 1`` image rows take the fast path)."""
-        if height < 2 or width < 1 or ring_rows < 2 or ring_rows & (ring_rows - 1):
-            raise ValueError(f"BlurScratch needs height >= 2, width >= 1, a power-of-2 ring >= 2; got "
-                             f"{height}, {width}, {ring_rows}")
-        return cls(np.zeros((ring_rows, width + 1), np.float32), np.full(ring_rows, -1, np.int64),
-                   np.zeros((3, width), np.int32), np.zeros((4, width), np.float32),
-                   np.ones(-(-(width + 8) // 8) * 8, np.uint8))
+    def of(cls, height: int, width: int) -> BlurScratch:
+        """Scratch for ``(height, width)`` images."""
+        if height < 2 or width < 1:
+            raise ValueError(f"BlurScratch needs height >= 2, width >= 1; got {height}, {width}")
+        return cls(np.zeros((width + 1, height), np.float32), np.zeros((3, height), np.int32),
+                   np.zeros((4, height), np.float32), np.ones(-(-(height + 8) // 8) * 8, np.uint8),
+                   np.zeros(height, np.float32), np.zeros((EXPOSE_BLOCK, -(-height // 8) * 8), np.uint8))
 
 
 #: columns exposed between two stores of the 8-bit frame (8 bytes: one 64-bit store a row;

@@ -40,6 +40,9 @@ from agvsim.sensors.render.ray_records import BlurScratch, MotionBlurParams, Sen
 from agvsim.sensors.render.scene import SceneDescription, build_scene
 from agvsim.sensors.render.truth import FrameTruth, TruthGeometry, frame_truth
 
+_NO_SENSOR = SensorParams(1.0, 0.0, 1.0, 0.0, 0.0, 0)  # (motion blur's sensor when the blurred radiance is stored)
+_NO_IMAGE = np.zeros((0, 0), np.uint8)
+
 
 def _num(name: str, value, lo: float | None = 0.0, strict: bool = False) -> float:
     return check_number(f"RenderConditions.{name}", value, low=lo, low_open=strict)
@@ -137,9 +140,10 @@ class CameraRenderer:
         self.illumination = Illumination.from_map(world_map)
         self._truth_geometry = TruthGeometry.of(world_map)
         self._distortion_maps = None
-        self._row_buffers = None  # raycast: row-major copies of the frame and motion blur's arrays
+        self._row_buffers = None  # raycast: row-major copies of the frame, for the optics
         self._frame_buffers = None  # raycast: the frame's radiance and depth, drawn into every frame
         self._columns_u8 = None  # raycast: a block of the 8-bit frame's columns, before they are stored
+        self._blur_buffers = None  # raycast: motion blur's work arrays and blurred radiance
         if self.backend == "pyrender":
             from agvsim.sensors.render.pyrender_backend import PyrenderBackend
 
@@ -230,7 +234,7 @@ class CameraRenderer:
         return image, depth_full
 
     def _raycast_frame(self, pose, cam_pose, conditions, rng):
-        from agvsim.sensors.render._motion_blur_kernels import motion_blur, transpose_into
+        from agvsim.sensors.render._motion_blur_kernels import transpose_into
         from agvsim.sensors.render._sensor_kernels import expose, expose_columns, expose_scratch, nearest_depth
 
         c = self.camera
@@ -249,27 +253,27 @@ class CameraRenderer:
             self.engine.draw_exposed(self.engine.view(c, cam_pose, conditions.level), self._sensor_params(conditions, rng),
                                      image, depth)
             return image, depth
-        # (H, W) column-major (the raycaster draws a column at a time): the sensor exposes it
-        # column by column into the row-major 8-bit frame; motion blur and OpenCV's optics read
-        # row-major copies (and the depth returned for the truth is then the row-major one)
+        # (H, W) column-major (the raycaster draws a column at a time): motion blur reads it as it
+        # is (and, with no optics after it, exposes it as it blurs it); the sensor exposes it column
+        # by column into the row-major 8-bit frame; OpenCV's optics read row-major copies (and the
+        # depth returned for the truth is then the row-major one)
         radiance, depth = self.engine.draw(c, cam_pose, conditions.level, self._frame_buffers)
         motion = None
         if moving:
             motion = sn.exposure_motion(c, radiance, depth, self._camera_twist(pose, v, w, cam_pose),
                                         conditions.exposure_time, z_min=nearest_depth(depth.T))
-        if motion is not None or optics:
-            if self._row_buffers is None:  # row-major copies, the blurred frame, the blur's work arrays
-                self._row_buffers = (*(np.empty((c.height, c.width), np.float32) for _ in range(3)),
-                                     BlurScratch.of(c.height, c.width))
-            rad_rows, dep_rows, blurred, scratch = self._row_buffers
+        if motion is not None:
+            blur = MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4])
+            if not optics:
+                return self._blurred(radiance, depth, blur, self._sensor_params(conditions, rng)), depth
+            radiance = self._blurred(radiance, depth, blur, None)
+        if optics:
+            if self._row_buffers is None:  # row-major copies of the radiance and the depth
+                self._row_buffers = tuple(np.empty((c.height, c.width), np.float32) for _ in range(2))
+            rad_rows, dep_rows = self._row_buffers
             transpose_into(radiance.T, rad_rows)
             transpose_into(depth.T, dep_rows)
-            radiance, depth = rad_rows, dep_rows
-            if motion is not None:
-                motion_blur(radiance, depth, MotionBlurParams(c.fx, c.fy, c.cx, c.cy, *motion[:4]), blurred, scratch)
-                radiance = blurred
-            if optics:
-                radiance = self._optics(radiance, depth, conditions)
+            radiance, depth = self._optics(rad_rows, dep_rows, conditions), dep_rows
         params = self._sensor_params(conditions, rng)
         image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
         if radiance.flags.c_contiguous:
@@ -279,6 +283,26 @@ class CameraRenderer:
                 self._columns_u8 = expose_scratch(c.height)
             expose_columns(radiance.T, params, image, self._columns_u8)
         return image, depth
+
+    def _blurred(self, radiance: np.ndarray, depth: np.ndarray, blur: MotionBlurParams,
+                 params: SensorParams | None) -> np.ndarray:
+        """The column-major ``radiance`` and ``depth`` (``(H, W)`` float32, Fortran order) blurred by
+        ``blur`` (:func:`~agvsim.sensors.render._motion_blur_kernels.blur_columns`): exposed with
+        ``params`` as it is blurred, a new ``(H, W)`` uint8 frame; or, ``params`` None, the blurred
+        radiance, ``(H, W)`` float32 in Fortran order (the renderer's buffer, overwritten by the
+        next such frame)."""
+        from agvsim.sensors.render._motion_blur_kernels import blur_columns
+
+        c = self.camera
+        if self._blur_buffers is None:  # the blur's work arrays, the blurred radiance (column-major)
+            self._blur_buffers = (BlurScratch.of(c.height, c.width), np.empty((c.width, c.height), np.float32))
+        scratch, blurred_t = self._blur_buffers
+        if params is None:
+            blur_columns(radiance.T, depth.T, blur, blurred_t, scratch, _NO_SENSOR, _NO_IMAGE)
+            return blurred_t.T
+        image = np.empty((c.height, c.width), np.uint8)  # a new array: callers keep their frames
+        blur_columns(radiance.T, depth.T, blur, blurred_t, scratch, params, image)
+        return image
 
     def _sensor_params(self, conditions: RenderConditions, rng: np.random.Generator | None) -> SensorParams:
         """The sensor's constants for one frame: its noise seed drawn from ``rng`` (None: no noise)."""
