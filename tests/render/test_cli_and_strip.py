@@ -57,7 +57,11 @@ def test_bench_render_json():
     assert res["render_ms"]["supersample_2"] > 0 and res["startup_s"]["gl_context"] > 0
     ray = res["raycast"]
     assert ray["passes"] == 5 and 0 < ray["best_of_passes_ms"]["render"] <= ray["render_ms"] * 1.5
-    assert ray["floor"]["met"] == (ray["render_ms"] <= ray["floor"]["render_median_ms_max"] == 2.0)
+    assert ray["floor"]["met"] == (ray["render_ms"] <= ray["floor"]["render_median_ms_max"] == 1.5)
+    blur = ray["floors"]["render() + motion blur median"]
+    assert blur["met"] == (ray["render_motion_blur_ms"] <= 2.0)
+    ratio = ray["floors"]["speed-up over pyrender's default"]
+    assert ratio["met"] == (res["render_ms"]["supersample_2"] / ray["render_ms"] >= 40.0)
 
 
 def test_camera_strip(tmp_path, gl_context):
