@@ -191,7 +191,8 @@ def config_floors(figures: dict) -> dict:
 
 
 def format_table(result: dict) -> str:
-    machine = result.get("machine", {}).get("cpu_model", "?")
+    m = result.get("machine", {})
+    machine = f"{m.get('cpu_model', '?')} ({m.get('vector_extensions', '?')}), {m.get('cpu_count', '?')} CPUs"
     lines = [f"agvsim bench env — {result['env_id']} (machine: {machine}, one process per config)", "",
              (f"{'config':8}{'observations':>14}{'localization':>14}{'steps':>7}{'steps/s':>10}"
               f"{'real-time x':>13}{'peak RSS (MB)':>15}")]
