@@ -187,6 +187,14 @@ def run(args) -> int:
             recording.close()
     for note in result.notes[len(drive.notes):]:
         log(f"agvsim track: {note}")
+    if result.interrupted:
+        if not len(result.time):
+            log("agvsim track: interrupted before the first odometry stamp: nothing written")
+            return 130
+        path = write_estimate(args.out / "estimate.csv", result)
+        log(f"agvsim track: interrupted after {plural(result.frames_used, 'frame')}: wrote the estimate up to "
+            f"t = {result.time[-1]:.2f} s to {path}" + (f" and the recording to {args.record}" if recording else ""))
+        return 130
     files = {"estimate": str(write_estimate(args.out / "estimate.csv", result))}
     if not args.no_plots:
         files.update(_pictures(args, setup, drive, result))

@@ -56,6 +56,7 @@ class TrackResult:
         lost_events: times the filter declared itself lost.
         notes: what was skipped or repaired, one line each.
         truth: (N, 3) the log's true pose at each stamp (interpolated), or None.
+        interrupted: Ctrl-C stopped the track: the arrays end at the last stamp it reached.
     """
 
     time: np.ndarray
@@ -70,6 +71,7 @@ class TrackResult:
     lost_events: int
     notes: tuple[str, ...] = ()
     truth: np.ndarray | None = field(default=None)
+    interrupted: bool = False
 
     def errors(self) -> np.ndarray | None:
         """(N,) position error against the truth (m), or None without it."""
@@ -170,6 +172,9 @@ def track(log: DriveLog, setup: TrackSetup, progress: Callable[[int], None] | No
         progress: called with the number of frames done after each frame.
         on_frame: called as ``on_frame(t, image, detections, ekf, result)`` after each frame fused
             (a recording); ``result`` the filter's :class:`~localizer.filter.FrameResult`.
+
+    Ctrl-C ends the track where it is: the result holds what was tracked up to then
+    (``interrupted``), so that its caller can keep it.
     """
     from agvsim.loop.closed_loop import LoopConfig, with_turn_blur
     from localizer import detect_targets
@@ -192,33 +197,37 @@ def track(log: DriveLog, setup: TrackSetup, progress: Callable[[int], None] | No
     if gaps(log.odometry_times, GAP):
         notes.append(f"{log.source}: {gaps(log.odometry_times, GAP)} gaps of more than {GAP:g} s in the odometry "
                      "(the filter predicts across them)")
-    i = 0
-    for k in range(len(frames)):
-        if not inside[k]:
-            continue
-        while i < n and t[i] <= frames[k]:
+    i, interrupted = 0, False
+    try:
+        for k in range(len(frames)):
+            if not inside[k]:
+                continue
+            while i < n and t[i] <= frames[k]:
+                ekf.add_odometry(float(t[i]), float(ds[i]), float(dth[i]))
+                est[i], cov[i], status[i] = ekf.pose(), ekf.covariance(), ekf.status
+                i += 1
+            image = _frame(log, k, setup.camera, problems)
+            if image is not None:
+                yaw_rate = float(rates[i - 1]) if i else 0.0
+                found = detect_targets(image, setup.camera, spec)
+                result = ekf.process_frame(float(frames[k]), [with_turn_blur(o, yaw_rate, blur) for o in found])
+                counts["used"] += 1
+                counts["with"] += bool(found)
+                counts["seen"] += len(found)
+                counts["fused"] += result.accepted
+                if on_frame is not None:
+                    on_frame(float(frames[k]), image, found, ekf, result)
+            if progress is not None:
+                progress(k + 1)
+        while i < n:
             ekf.add_odometry(float(t[i]), float(ds[i]), float(dth[i]))
             est[i], cov[i], status[i] = ekf.pose(), ekf.covariance(), ekf.status
             i += 1
-        image = _frame(log, k, setup.camera, problems)
-        if image is not None:
-            yaw_rate = float(rates[i - 1]) if i else 0.0
-            found = detect_targets(image, setup.camera, spec)
-            result = ekf.process_frame(float(frames[k]), [with_turn_blur(o, yaw_rate, blur) for o in found])
-            counts["used"] += 1
-            counts["with"] += bool(found)
-            counts["seen"] += len(found)
-            counts["fused"] += result.accepted
-            if on_frame is not None:
-                on_frame(float(frames[k]), image, found, ekf, result)
-        if progress is not None:
-            progress(k + 1)
-    while i < n:
-        ekf.add_odometry(float(t[i]), float(ds[i]), float(dth[i]))
-        est[i], cov[i], status[i] = ekf.pose(), ekf.covariance(), ekf.status
-        i += 1
+    except KeyboardInterrupt:  # (Ctrl-C: what was tracked so far, up to the last stamp reached)
+        interrupted = True
+        t, est, cov, status = t[:i], est[:i], cov[:i], status[:i]
     notes += [f"{message} ({count} frames)" if count > 1 else message for count, message in problems.values()]
     refused = sum(c for c, _ in problems.values())
     truth = truth_at(log.truth, t) if log.truth is not None and len(log.truth) > 1 else None
     return TrackResult(t, est, cov, status.astype(str), counts["used"], refused, counts["with"], counts["seen"],
-                       counts["fused"], ekf.lost_events, tuple(notes), truth)
+                       counts["fused"], ekf.lost_events, tuple(notes), truth, interrupted)

@@ -119,6 +119,35 @@ def test_a_tracked_log_recording_holds_truth_dead_reckoning_and_the_error(drive,
     assert rows["filter/status"] < frames  # (said when it changes)
 
 
+@pytest.mark.slow
+def test_ctrl_c_keeps_the_estimate_and_the_recording_so_far(drive, tmp_path, capfd, monkeypatch, python_sigint):
+    import os
+    import signal
+
+    import localizer
+    from rerun.chunk import RrdReader
+
+    real, calls = localizer.detect_targets, []
+
+    def signalled(image, *args, **kw):
+        calls.append(1)
+        if len(calls) == 40:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(image, *args, **kw)
+
+    monkeypatch.setattr(localizer, "detect_targets", signalled)
+    rc, _, err = _run(["track", str(drive / "log"), "--map", "corridor", "--out", str(tmp_path / "t"), "--no-progress",
+                       "--record", str(tmp_path / "t.rrd")], capfd)
+    # (the signal is held back to the end of the 40th frame's search, which is then not fused)
+    assert rc == 130 and "interrupted after 39 frames: wrote the estimate up to t = " in err, err
+    rows = np.loadtxt(tmp_path / "t" / "estimate.csv", delimiter=",", skiprows=1, usecols=(0, 1, 2, 3))
+    frames = np.loadtxt(drive / "log" / "frames.csv", delimiter=",", skiprows=1, usecols=(0,))
+    assert len(rows) > 40 and rows[-1, 0] <= frames[39] + 1e-6 and np.isfinite(rows).all()
+    images = sum(c.num_rows for c in RrdReader(str(tmp_path / "t.rrd")).stream()
+                 if str(c.entity_path) == "/camera/image")
+    assert images == 39
+
+
 # ------------------------------------------------------------------ messy logs
 def _copy(drive, tmp_path) -> Path:
     log = tmp_path / "log"
