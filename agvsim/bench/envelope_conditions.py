@@ -71,7 +71,7 @@ FLOORS: dict[str, tuple[str, float, str, str]] = {
     "ms_median": ("<=", 0.5, "ms", "median ms per 512x480 frame"),
     "ms_p99": ("<=", 3.0, "ms", "p99 ms per 512x480 frame"),
     "ms_median_2448": ("<=", 2.0, "ms", "median ms per 2448x2048 frame"),
-    "peer_ratio": (">=", 10.0, "x", "times faster than ArUco+solvePnP and AprilTag 3 on the same frames (medians; "
+    "peer_ratio": (">=", 3.0, "x", "times faster than ArUco+solvePnP and AprilTag 3 on the same frames (medians; "
                                     "--peers)"),
 }
 #: the speed floors apply to conditions of this size (width, height)
