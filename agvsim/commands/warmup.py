@@ -60,7 +60,7 @@ def run(args) -> int:
     todo = parts()
     jobs = min(args.jobs or os.cpu_count() or 1, len(todo))
     log(f"agvsim warmup: {plural(len(todo), 'part')} ({', '.join(todo)}) on {plural(jobs, 'process', 'processes')}; "
-        "in a fresh install this compiles the kernels (a few minutes on 2 cores), later it only loads them")
+        "in a fresh install this compiles the kernels (about a minute on 2 cores), later it only loads them")
     start = time.perf_counter()
     done: dict[str, dict] = {}
 
