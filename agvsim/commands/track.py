@@ -105,13 +105,12 @@ def write_estimate(path: Path, result) -> Path:
     return path
 
 
-def _pictures(args, setup, drive, result) -> dict:
+def _pictures(args, setup, drive, result, reckoned) -> dict:
+    """The top-down picture and, with truth, the error plot; ``reckoned``: the odometry alone at
+    the estimate's stamps (:func:`agvsim.replay.track.dead_reckoned`), or None."""
     from agvsim.analysis.plots import error_vs_distance
     from agvsim.analysis.topdown import TopDownView, Trajectory
 
-    from agvsim.replay.track import dead_reckoned
-
-    reckoned = dead_reckoned(drive, setup)  # (the odometry alone, at the estimate's stamps)
     paths = [Trajectory(result.estimate, (40, 90, 220), "estimate")]
     if result.truth is not None:
         paths.insert(0, Trajectory(result.truth, (30, 150, 40), "true"))
@@ -134,14 +133,16 @@ def _pictures(args, setup, drive, result) -> dict:
     return files
 
 
-def _recorder(recording, drive, setup):
+def _recorder(recording, drive, reckoned):
     """The ``on_frame`` of :func:`agvsim.replay.track.track` that records each frame: the image and
     what was found in it, the fusion, and the estimate beside the log's truth (when it has one)
-    and its odometry alone (from a known start); the filter's status when it changes."""
-    from agvsim.replay.track import dead_reckoned, truth_at
+    and its odometry alone (``reckoned``, from a known start, or None); the filter's status when
+    it changes."""
+    from agvsim.replay.track import truth_at
 
-    truth = drive.truth if drive.truth is not None and len(drive.truth) > 1 else None
-    reckoned = dead_reckoned(drive, setup)
+    truth = None  # (the true pose at each frame's stamp, interpolated once)
+    if drive.truth is not None and len(drive.truth) > 1:
+        truth = dict(zip(drive.frame_times.tolist(), truth_at(drive.truth, drive.frame_times)))
     last = [None]
 
     def on_frame(t, image, found, ekf, res):
@@ -149,7 +150,7 @@ def _recorder(recording, drive, setup):
         recording.fused(t, res.nis, res.accepted)
         poses = {"estimate": ekf.pose()}
         if truth is not None:
-            poses["truth"] = tuple(truth_at(truth, np.array([t]))[0])
+            poses["truth"] = tuple(truth[t])
         if reckoned is not None:
             times, reckoned_poses = reckoned
             poses["dead_reckoning"] = tuple(reckoned_poses[max(int(np.searchsorted(times, t, "right")) - 1, 0)])
@@ -163,7 +164,7 @@ def _recorder(recording, drive, setup):
 def run(args) -> int:
     from tqdm import tqdm
 
-    from agvsim.replay.track import track
+    from agvsim.replay.track import dead_reckoned, track
 
     if args.record is not None:
         check_extra("rerun", "--record")
@@ -174,11 +175,12 @@ def run(args) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     bar = tqdm(total=len(drive.frame_times), unit="frame", disable=args.no_progress, desc="track", leave=False)
     on_frame, recording = None, None
+    reckoned = dead_reckoned(drive, setup)  # (the odometry alone, at the estimate's stamps)
     if args.record is not None:
         from agvsim.record import RunRecording
 
         recording = RunRecording(args.record, "track", setup.world_map)
-        on_frame = _recorder(recording, drive, setup)
+        on_frame = _recorder(recording, drive, reckoned)
     try:
         result = track(drive, setup, progress=lambda k: bar.update(k - bar.n), on_frame=on_frame)
     finally:
@@ -197,7 +199,7 @@ def run(args) -> int:
         return 130
     files = {"estimate": str(write_estimate(args.out / "estimate.csv", result))}
     if not args.no_plots:
-        files.update(_pictures(args, setup, drive, result))
+        files.update(_pictures(args, setup, drive, result, reckoned))
     summary = {**result.summary(), "files": files}
     if args.json:
         emit_json(summary)

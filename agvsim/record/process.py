@@ -14,6 +14,8 @@ __all__ = ["CALL_BATCH", "RunRecording"]
 
 #: calls a :class:`RunRecording` gathers before it queues them for its process
 CALL_BATCH = 32
+
+
 def _serve(queue, errors, args) -> None:
     """The recording process: :class:`RecordingWriter` calls from ``queue`` (lists of them) until
     ``None``; the first error's message on ``errors`` (Ctrl-C is the parent's: it closes the
