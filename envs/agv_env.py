@@ -114,7 +114,10 @@ class AGVEnv(gym.Env):
     at ``reset``; a fresh dict each time): ``status`` ({statuses}),
     ``position_sigma`` (m, the largest standard deviation of the believed
     position), ``since_fix`` (s since the last accepted target observation or
-    re-localization), ``reason`` (why lost; None while tracking),
+    re-localization), ``since_tracking`` (s since the status was last
+    ``tracking``; 0 while it is), ``hypotheses`` (poses the belief holds: 1,
+    the components of a wide belief after a long turn unseen, or the
+    re-localization hypotheses while lost), ``reason`` (why lost; None while tracking),
     ``lost_events`` and ``relocalizations`` (counts this episode). With
     ``localization="truth"`` or ``"odometry"`` the status is always ``tracking``.
 

@@ -275,23 +275,26 @@ class ClosedLoop:
         """The localization's state for the agent (``info["localization"]``): ``status``
         (``tracking``, ``lost`` or ``relocalizing``), ``position_sigma`` (m, the largest
         standard deviation of the believed position), ``since_fix`` (s since the last
-        accepted target observation, or re-localization), ``reason`` (why lost; None while
-        tracking), ``lost_events`` and ``relocalizations`` (counts this episode).
+        accepted target observation, or re-localization), ``since_tracking`` (s since the status
+        was last ``tracking``; 0 while it is), ``hypotheses`` (poses the belief holds: 1 for one
+        Gaussian, the components of a wide belief, the live re-localization hypotheses while
+        lost), ``reason`` (why lost; None while tracking), ``lost_events`` and
+        ``relocalizations`` (counts this episode).
 
         ``covariance``: :attr:`covariance` if the caller has it already (it is not made
         twice). For ``localization="odometry"`` the status is always ``tracking`` and
         ``since_fix`` the time since the start; for ``"truth"`` σ and ``since_fix`` are 0."""
         now = self.sim.time
         if self.localization == "truth":
-            return {"status": TRACKING, "position_sigma": 0.0, "since_fix": 0.0, "reason": None,
-                    "lost_events": 0, "relocalizations": 0}
+            return {"status": TRACKING, "position_sigma": 0.0, "since_fix": 0.0, "since_tracking": 0.0,
+                    "hypotheses": 1, "reason": None, "lost_events": 0, "relocalizations": 0}
         sigma = position_sigma(self.covariance if covariance is None else covariance)
         if self.localization == "odometry":
-            return {"status": TRACKING, "position_sigma": sigma, "since_fix": now, "reason": None,
-                    "lost_events": 0, "relocalizations": 0}
+            return {"status": TRACKING, "position_sigma": sigma, "since_fix": now, "since_tracking": 0.0,
+                    "hypotheses": 1, "reason": None, "lost_events": 0, "relocalizations": 0}
         ekf = self.ekf
         return {"status": ekf.status, "position_sigma": sigma, "since_fix": ekf.since_fix(now),
-                "reason": ekf.lost_reason, "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
+                "since_tracking": ekf.since_tracking(now), "hypotheses": ekf.hypotheses, "reason": ekf.lost_reason, "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
 
     def kidnap(self, pose) -> None:
         """Carry the vehicle to ``pose`` (x m, y m, θ rad) without telling the filter (the

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from localizer.filter.association import GateConfig, gate_threshold
 from localizer.filter.motion import OdometryNoise
 from localizer.filter.relocalize import RelocalizeConfig
+from localizer.filter.wide import WideConfig
 from localizer.numeric import check_number, check_numbers
 
 __all__ = ["FilterConfig"]
@@ -20,10 +21,14 @@ class FilterConfig:
         noise: odometry motion-noise model.
         gate: association settings.
         relocalize: re-localization settings.
+        wide: the wide belief (:mod:`localizer.filter.wide`) the filter keeps, still tracking, when
+            odometry alone has spread its estimate past ``lost_position_sigma`` or
+            ``lost_heading_sigma`` (None: it declares itself lost there instead).
         measurement_floor: (σ_d m, σ_β rad, σ_α rad) added in quadrature to every
             observation's covariance (camera mount and map survey errors).
-        lost_position_sigma: position σ (m) above which the filter is lost.
-        lost_heading_sigma: heading σ (rad) above which the filter is lost.
+        lost_position_sigma: position σ (m) above which one Gaussian is given up (for the wide
+            belief; lost without one).
+        lost_heading_sigma: heading σ (rad) above which one Gaussian is given up (the same).
         lost_rejected_frames: frames in a row with observations and a target predicted in view,
             none accepted, before lost.
         lost_misfit_frames: frames whose grossly misfitting detections line up (module
@@ -46,6 +51,7 @@ class FilterConfig:
     noise: OdometryNoise = OdometryNoise()
     gate: GateConfig = GateConfig()
     relocalize: RelocalizeConfig = RelocalizeConfig()
+    wide: WideConfig | None = WideConfig()
     measurement_floor: tuple[float, float, float] = (0.002, 0.0003, 0.002)  # m, rad, rad
     lost_position_sigma: float = 1.0  # m
     lost_heading_sigma: float = math.radians(20.0)  # rad

@@ -21,39 +21,28 @@ residual; filterpy 2.0's EKF update is in Joseph form,
 too; the NIS of each update is read from filterpy's innovation ``y`` and its
 covariance ``S`` (:func:`~localizer.filter.update.nis`).
 
-Slip (:class:`~localizer.filter.motion.ContactSlip`): while the vehicle reports contact
-(``add_odometry(..., in_contact=True)``: its bumper), the odometry noise grows with the wheel
-motion counted since the contact began (``contact_slip``: 1 = all of it may be slip), so the
-covariance stays honest while the wheels spin against a wall.
+Slip: while the vehicle reports contact (``add_odometry(..., in_contact=True)``), the odometry
+noise grows with the wheel motion since the contact began (:class:`~localizer.filter.motion.ContactSlip`).
 
 Status (:data:`STATUSES`): ``tracking``; ``lost`` (no live re-localization hypothesis) or
-``relocalizing`` (hypotheses alive, none confirmed yet). The filter declares itself lost,
-with the reason (:attr:`PoseEKF.lost_reason`), when any of these holds:
+``relocalizing`` (hypotheses alive, none confirmed yet).
 
-* position σ (largest eigenvalue of P_xy) above ``lost_position_sigma``, or heading σ above
-  ``lost_heading_sigma``;
-* ``lost_rejected_frames`` frames in a row with a target predicted in view whose
-  observations were all refused;
-* consistent detections that the estimate cannot explain: refused detections that misfit
-  grossly (no target of their polarity predicted in view, or the nearest candidate's D² above
-  ``misfit_d2``), placed in the map from the estimate, that fall within ``misfit_radius`` of
-  one another, facing the same way within ``misfit_yaw``, over ``lost_misfit_frames`` such
-  frames in a row (one real target seen from a wrong estimate stays put, as odometry moves the
-  estimate with the vehicle; false detections do not line up). It works far from the truth, and fast;
-* the estimate outside the map's free space (inside a wall or an obstacle, or outside the
-  map), when the filter was given ``free_space``;
-* the mean NIS of the last ``nis_window`` accepted updates above the χ²(3 ``nis_window``)
-  quantile of ``nis_probability`` divided by ``nis_window`` (consistently poor fits);
-* told so: :meth:`PoseEKF.declare_lost` (an unknown start pose).
+Wide is not lost: when odometry alone spreads the estimate past ``lost_position_sigma`` (largest
+eigenvalue of P_xy) or ``lost_heading_sigma``, the filter keeps the same belief as a Gaussian
+mixture (:class:`~localizer.filter.wide.WideBelief`, ``FilterConfig.wide``) and goes on
+tracking: the state and covariance it reports are the mixture's moments, honest however wide,
+and the first target seen reweighs the components, until the moments are narrow again and one
+Gaussian takes over. The wide belief is given up (lost) when its own tests say so
+(:meth:`~localizer.filter.wide.WideBelief.lost_reason`); the one Gaussian when the tests of
+:mod:`localizer.filter.lost` say so (misfits that line up, frames refused, poor fits, an
+estimate outside free space), or when told so: :meth:`PoseEKF.declare_lost` (an unknown start
+pose). The reason is kept (:attr:`PoseEKF.lost_reason`).
 
 Then :class:`~localizer.filter.relocalize.Relocalizer` takes the frames until a hypothesis is
 confirmed (never while a contact's wheel slip is still counting: the odometry the hypotheses
 ride on is not to be trusted then; global re-localization from nothing: the main state plays
-no part in it). While tracking, the filter keeps the frames since the last one with an accepted
-observation (at most ``relocalize.replay_frames``), their measurements and the odometry between
-them; on becoming lost it replays them into the re-localization first, so the detections that
-were refused are the first evidence (a kidnapped vehicle has often seen two targets by the time
-it knows it is lost). Inputs are checked at the boundary (:mod:`localizer.filter.limits`).
+no part in it); the frames since the last fit are replayed into it first
+(:mod:`localizer.filter.replay`, at most ``relocalize.replay_frames``). Inputs are checked at the boundary (:mod:`localizer.filter.limits`).
 """
 from __future__ import annotations
 
@@ -69,11 +58,14 @@ from localizer.filter.limits import (LOST, MAX_HEADING_SIGMA, MAX_ODOMETRY_STEP,
                                      MAX_POSITION_SIGMA, RELOCALIZING, STATUSES, TIME_SLACK, TRACKING, UNINFORMATIVE,
                                      FrameResult, Refused, check_frame_time, check_odometry, check_state,
                                      with_refused, within_bounds)
+from localizer.filter.lost import Evidence, becomes_wide, lost_reason
 from localizer.filter.measurement import Measurement, TargetMap, informative
-from localizer.filter.misfits import line_up
+from localizer.filter.misfits import MisfitWatch
 from localizer.model.mount import CameraMount
 from localizer.filter.motion import ContactSlip, OdometryAccumulator, compose_jacobians
 from localizer.filter.relocalize import Hypothesis, Relocalizer
+from localizer.filter.replay import RecentFrames
+from localizer.filter.wide import WideBelief
 from localizer.filter.update import PoseKF, nis, position_sigma, predict_pose, update_pose
 from localizer.numeric import check_number, wrap_angle
 
@@ -110,12 +102,12 @@ class PoseEKF:
         self.relocalizer = Relocalizer(targets, mount, config.gate, config.relocalize, free_space=free_space)
         self.lost = False
         self.lost_reason: str | None = None  # why the filter is lost (None while tracking)
+        self.wide: WideBelief | None = None  # the mixture while the estimate is wide (module docstring)
+        self.wide_events = 0  # times the estimate became wide
+        self.last_tracking = float(t0)  # s: the filter time it was last tracking
         self.rejected_frames = 0  # consecutive frames with a target predicted in view, none accepted
-        self.misfit_frames = 0  # the longest line-up of grossly misfitting detections (frames)
-        # misfitting detections since the last accepted one placed in the map:
-        # (x m, y m, facing rad, polarity, support frames, misfit frame number)
-        self._misfits: list[tuple[float, float, float, str | None, int, int]] = []
-        self._misfit_count = 0  # frames with misfitting detections so far
+        # grossly misfitting detections since the last accepted one, placed in the map
+        self.misfits = MisfitWatch(targets, config.misfit_d2, config.misfit_radius, config.misfit_yaw)
         self.rejections = 0  # observations not accepted, total
         self._refusals: dict[str, int] = {}  # inputs refused at the boundary, by reason (diagnostics)
         self.relocalizations = 0
@@ -123,8 +115,7 @@ class PoseEKF:
         self.last_fix = float(t0)  # s: the last accepted update (or confirmed re-localization)
         self._nis = deque(maxlen=config.nis_window)  # the latest accepted updates' NIS
         # while tracking: [u (3,), Q (3, 3), measurements] per flush / frame, for the replay
-        self._history: deque = deque(maxlen=config.relocalize.replay_frames)
-        self._flush_entry = None  # the history entry the last flush made
+        self._history = RecentFrames(config.relocalize.replay_frames)
         self._nis_limit = config.nis_limit
         self._floor = np.diag(np.asarray(config.measurement_floor, dtype=float) ** 2)
 
@@ -145,6 +136,18 @@ class PoseEKF:
         if not self.lost:
             return TRACKING
         return RELOCALIZING if self.relocalizer.hypotheses else LOST
+
+    @property
+    def hypotheses(self) -> int:
+        """How many poses the belief holds: 1 while tracking with one Gaussian, the wide belief's
+        components, or the live re-localization hypotheses while lost."""
+        if self.lost:
+            return len(self.relocalizer.hypotheses)
+        return 1 if self.wide is None else len(self.wide)
+
+    def since_tracking(self, t: float) -> float:
+        """Seconds from the last filter time the status was ``tracking`` to ``t`` (0 while tracking)."""
+        return 0.0 if not self.lost else max(float(t) - self.last_tracking, 0.0)
 
     def since_fix(self, t: float) -> float:
         """Seconds from the last accepted update (or confirmed re-localization) to ``t`` (s)."""
@@ -209,7 +212,7 @@ class PoseEKF:
 
     def _flush(self, t: float) -> None:
         acc = OdometryAccumulator(self.config.noise)
-        self._flush_entry = None
+        self._history.no_motion()
         while self._pending and self._pending[0][0] <= t + 1e-9:
             _, ds, dth, slip = self._pending.popleft()
             acc.add(ds, dth, slip)
@@ -217,13 +220,16 @@ class PoseEKF:
             self._predict(acc.u, acc.Q)
             self._refresh_now()
             if not self.lost:
-                self._flush_entry = [acc.u, acc.Q, ()]
-                self._history.append(self._flush_entry)
+                self._history.motion(acc.u, acc.Q)
         self.time = float(t)
         self._check_lost()
 
     def _predict(self, u: np.ndarray, Q: np.ndarray) -> None:
-        predict_pose(self.kf, u, Q)
+        if self.wide is not None:
+            self.wide.predict(u, Q)
+            self._from_wide()
+        else:
+            predict_pose(self.kf, u, Q)
         self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         if self.lost:
             self.relocalizer.predict(u, Q)
@@ -242,32 +248,31 @@ class PoseEKF:
                           f"heading sigma > {MAX_HEADING_SIGMA:g} rad, or not finite)")
         self.kf.P = np.diag(np.asarray(self.config.lost_sigma, dtype=float) ** 2)
 
+    def _from_wide(self) -> None:
+        """The state and covariance from the wide belief's moments."""
+        x, P = self.wide.moments()
+        self.kf.x = x.reshape(3, 1)
+        self.kf.P = P
+
     def _check_lost(self) -> None:
         if self.lost:
             return
-        cfg = self.config
-        P = self.kf.P
-        pos_sigma = position_sigma(P)
-        heading_sigma = math.sqrt(max(P.item(2, 2), 0.0))
-        reason = None
-        if pos_sigma > cfg.lost_position_sigma:
-            reason = f"position sigma {pos_sigma:.2f} m > {cfg.lost_position_sigma:g} m"
-        elif heading_sigma > cfg.lost_heading_sigma:
-            reason = (f"heading sigma {math.degrees(heading_sigma):.1f} deg > "
-                      f"{math.degrees(cfg.lost_heading_sigma):g} deg")
-        elif self.rejected_frames >= cfg.lost_rejected_frames:
-            reason = (f"{self.rejected_frames} frames in a row with a target predicted in view "
-                      "and every detection refused")
-        elif self.misfit_frames >= cfg.lost_misfit_frames:
-            reason = (f"detections in {self.misfit_frames} frames line up where the estimate "
-                      "predicts no target that fits them")
-        elif len(self._nis) == cfg.nis_window and sum(self._nis) / cfg.nis_window > self._nis_limit:
-            reason = (f"mean NIS {sum(self._nis) / cfg.nis_window:.1f} over the last {cfg.nis_window} "
-                      f"updates > {self._nis_limit:.1f}")
-        elif self.free_space is not None:
-            x, y = self.kf.x.item(0), self.kf.x.item(1)
-            if not self.free_space(x, y):
-                reason = f"estimate ({x:.2f}, {y:.2f}) m is not in free space (in a wall or obstacle, or off the map)"
+        self.last_tracking = self.time
+        if self.wide is not None:
+            reason = self.wide.lost_reason()
+            if reason is not None:
+                self.declare_lost(reason)
+            elif self.wide.narrow():
+                self._from_wide()
+                self.wide = None
+            return
+        if becomes_wide(self.kf.P, self.config):
+            cfg = self.config
+            self.wide = WideBelief(self.kf.x, self.kf.P, self.targets, self.mount, cfg.gate, cfg.wide, self.free_space)
+            self.wide_events += 1
+            return
+        evidence = Evidence(self.rejected_frames, self.misfits.frames, self._nis, self._nis_limit)
+        reason = lost_reason(self.kf.x.reshape(-1), self.kf.P, self.config, evidence, self.free_space)
         if reason is not None:
             self.declare_lost(reason)
 
@@ -279,14 +284,11 @@ class PoseEKF:
         self.lost = True
         self.lost_reason = str(reason)
         self.lost_events += 1
+        self.wide = None
         self.kf.P = np.diag(np.asarray(self.config.lost_sigma, dtype=float) ** 2)
         reloc = self.relocalizer
         reloc.reset()
-        for u, Q, ms in self._history:  # the recent frames first (module docstring)
-            reloc.predict(u, Q)
-            if ms:
-                reloc.process(ms)
-        self._history.clear()
+        self._history.replay(reloc)  # the recent frames first (module docstring)
 
     # ------------------------------------------------------------ update
     def measurement(self, obs) -> Measurement:
@@ -320,10 +322,9 @@ class PoseEKF:
             result = self._relocalize(t_capture, ms)
             return with_refused(result, keep, len(fused)) if refused else result
         if ms:  # the frame's measurements join the motion this flush predicted (if any)
-            if self._flush_entry is not None and self._history and self._history[-1] is self._flush_entry:
-                self._flush_entry[2] = ms
-            else:
-                self._history.append([np.zeros(3), np.zeros((3, 3)), ms])
+            self._history.measured(ms)
+        if self.wide is not None:
+            return self._wide_frame(t_capture, ms, keep, len(fused))
         assoc = associate(self.kf.x, self.kf.P, ms, self.targets, self.mount, self.config.gate)
         nis = []
         for a in assoc:
@@ -335,14 +336,11 @@ class PoseEKF:
             nis.append(update_pose(self.kf, m, pos, yaw, self.mount))  # NIS from filterpy's y and S
             self.kf.x[2, 0] = wrap_angle(float(self.kf.x[2, 0]))
         accepted = len(nis)
-        # a frame counts against the filter when a target was predicted in view and none of the
-        # observations fitted (rejected), or when there were detections and no target of their
-        # polarity is predicted in view at all (unexplained: the estimate is elsewhere, or they
-        # are false detections, which do not come several frames in a row)
+        # a frame counts against the filter when a target was predicted in view and none fitted;
+        # gross misfits not explained by the map are watched for a line-up (localizer.filter.lost)
         if accepted:
             self.rejected_frames = 0
-            self.misfit_frames = 0
-            self._misfits.clear()
+            self.misfits.clear()
             self._history.clear()  # the replay starts after the last frame that fitted
             self.last_fix = float(t_capture)
             self._nis.extend(nis)
@@ -350,9 +348,7 @@ class PoseEKF:
         elif any(a.candidates > 0 for a in assoc):
             self.rejected_frames += 1
         if not accepted:
-            gross = [ms[a.observation] for a in assoc if a.d2 > self.config.misfit_d2]
-            if gross:
-                self._line_up(gross)
+            self.misfits.observe(ms, assoc, self.mount.camera_pose(self.kf.x.reshape(-1)))
         # no _refresh_now here: flush left _now the accumulation of exactly the queued increments
         self._check_lost()
         relocalized = False
@@ -365,14 +361,31 @@ class PoseEKF:
                              len(self.relocalizer.hypotheses), self.status)
         return with_refused(result, keep, len(fused)) if refused else result
 
+    def _wide_frame(self, t: float, ms: list[Measurement], keep: list[int], n: int) -> FrameResult:
+        """A frame while the estimate is wide: the mixture reweighed by it (module docstring)."""
+        informative = [self.relocalizer.is_evidence(m) for m in ms]
+        explained, assoc, nis = self.wide.update(ms, informative)
+        self.rejections += len(ms) - len(nis)
+        if explained:
+            self.last_fix = float(t)
+            self._history.clear()
+            self._slip.restart()
+        if self.wide.components:
+            self._from_wide()
+        self._check_lost()
+        result = FrameResult(t, tuple(assoc), np.asarray(nis), len(nis), self.lost, False, self.hypotheses,
+                             self.status)
+        return with_refused(result, keep, n) if len(keep) != n else result
+
     def _refuse(self, reason: str) -> None:
         self._refusals[reason] = self._refusals.get(reason, 0) + 1
 
     def diagnostics(self) -> dict:
         """The filter's state for whoever watches it: ``status``, ``lost_reason``,
         ``position_sigma`` (m) and ``heading_sigma`` (rad) of filterpy's ``P``, ``nis`` of
-        filterpy's last update (``y``, ``S``; nan before any), the counters ``rejections``,
-        ``relocalizations``, ``lost_events``, and ``refusals``: inputs refused, by reason
+        filterpy's last update (``y``, ``S``; nan before any), ``hypotheses`` (:attr:`hypotheses`),
+        the counters ``rejections``, ``relocalizations``, ``lost_events``, ``wide_events`` (times
+        the estimate became a wide belief), and ``refusals``: inputs refused, by reason
         (:data:`~localizer.filter.limits.REFUSAL_REASONS`)."""
         P = self.kf.P
         refusals = dict(self._refusals)
@@ -385,18 +398,8 @@ class PoseEKF:
         return {"status": self.status, "lost_reason": self.lost_reason, "time": self.time,
                 "position_sigma": position_sigma(P), "heading_sigma": math.sqrt(max(P.item(2, 2), 0.0)),
                 "nis": last_nis, "rejections": self.rejections, "relocalizations": self.relocalizations,
-                "lost_events": self.lost_events, "refusals": refusals}
-
-    def _line_up(self, ms: list[Measurement]) -> None:
-        """Place a frame's grossly misfitting detections in the map from the estimate and count
-        over how many such frames in a row (one skipped allowed) each lines up
-        (:attr:`misfit_frames`, the longest; :func:`localizer.filter.misfits.line_up`)."""
-        self._misfit_count += 1
-        past = [e for e in self._misfits if e[5] >= self._misfit_count - 2]  # the two frames before this one
-        now = line_up(ms, self.mount.camera_pose(self.kf.x.reshape(-1)), past, self._misfit_count,
-                      self.config.misfit_radius, self.config.misfit_yaw)
-        self.misfit_frames = max([self.misfit_frames] + [e[4] for e in now])
-        self._misfits = now + past
+                "lost_events": self.lost_events, "hypotheses": self.hypotheses, "wide_events": self.wide_events,
+                "refusals": refusals}
 
     def _refresh_now(self) -> None:
         self._now.reset()
@@ -427,9 +430,9 @@ class PoseEKF:
     def _recovered(self, t: float) -> None:
         self.lost = False
         self.lost_reason = None
+        self.wide = None
         self.rejected_frames = 0
-        self.misfit_frames = 0
-        self._misfits.clear()
+        self.misfits.clear()
         self._nis.clear()
         self._history.clear()
         self._slip.restart()

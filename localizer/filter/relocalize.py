@@ -237,7 +237,7 @@ class Relocalizer:
                     self._refuse("uninformative_match")  # displace a sound hypothesis at its place
                     continue
                 self._born += 1
-                # the seeding observation is the first match, when it is evidence (_evidence); it
+                # the seeding observation is the first match, when it is evidence (is_evidence); it
                 # explains nothing (a hypothesis made from an observation fits it by construction)
                 if sigma <= self.config.evidence_sigma:
                     matched = {self.targets.ids[j]}
@@ -290,7 +290,7 @@ class Relocalizer:
         if not measurements:
             return False
         # a loose observation fits anything: it updates a hypothesis, but says nothing for or against it
-        informative = [self._evidence(m) for m in measurements]
+        informative = [self.is_evidence(m) for m in measurements]
         fitted: set[int] = set()  # the informative observations some hypothesis accepted
         refusals = []
         for h in self.hypotheses:
@@ -362,7 +362,7 @@ class Relocalizer:
             self._refuse("imprecise_confirmation")
         return None
 
-    def _evidence(self, m: Measurement) -> bool:
+    def is_evidence(self, m: Measurement) -> bool:
         """Whether ``m`` alone places the vehicle within ``evidence_sigma`` (position σ of
         ``J R Jᵀ``, J the Jacobian of the pose it gives from a target: the same for every
         target, as moving or turning the target moves or turns that pose)."""

@@ -168,7 +168,7 @@ def test_a_loose_observation_neither_kills_nor_supports_a_hypothesis():
     reloc.hypotheses = [h]
     for polarity in ("positive", "negative"):  # one it fits (B0 / B1 in view), one it does not
         loose = Measurement([5.0, 0.3, 0.2], np.diag([0.9, 0.4, 3.0]) ** 2, polarity)
-        assert not reloc._evidence(loose)  # noqa: SLF001 - the rule under test
+        assert not reloc.is_evidence(loose)
         reloc.process([loose])
         assert h in reloc.hypotheses and h.misses == 2
         assert h.explained == {"B0": 1} and h.matched == {"B0"}
