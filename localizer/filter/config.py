@@ -23,7 +23,11 @@ class FilterConfig:
         relocalize: re-localization settings.
         wide: the wide belief (:mod:`localizer.filter.wide`) the filter keeps, still tracking, when
             odometry alone has spread its estimate past ``lost_position_sigma`` or
-            ``lost_heading_sigma`` (None: it declares itself lost there instead).
+            ``lost_heading_sigma``; None (the default): it declares itself lost there instead.
+            Opt-in: under uniform random driving it keeps tracking about 90 % of steps instead
+            of 30-75 %, but its mixture can collapse onto a look-alike target's component, a
+            confident wrong pose the one Gaussian does not produce (BENCHMARKS.md, filter
+            availability).
         measurement_floor: (σ_d m, σ_β rad, σ_α rad) added in quadrature to every
             observation's covariance (camera mount and map survey errors).
         lost_position_sigma: position σ (m) above which one Gaussian is given up (for the wide
@@ -51,7 +55,7 @@ class FilterConfig:
     noise: OdometryNoise = OdometryNoise()
     gate: GateConfig = GateConfig()
     relocalize: RelocalizeConfig = RelocalizeConfig()
-    wide: WideConfig | None = WideConfig()
+    wide: WideConfig | None = None
     measurement_floor: tuple[float, float, float] = (0.002, 0.0003, 0.002)  # m, rad, rad
     lost_position_sigma: float = 1.0  # m
     lost_heading_sigma: float = math.radians(20.0)  # rad

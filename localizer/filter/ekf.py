@@ -29,7 +29,7 @@ Status (:data:`STATUSES`): ``tracking``; ``lost`` (no live re-localization hypot
 
 Wide is not lost: when odometry alone spreads the estimate past ``lost_position_sigma`` (largest
 eigenvalue of P_xy) or ``lost_heading_sigma``, the filter keeps the same belief as a Gaussian
-mixture (:class:`~localizer.filter.wide.WideBelief`, ``FilterConfig.wide``) and goes on
+mixture (:class:`~localizer.filter.wide.WideBelief`, ``FilterConfig.wide``, opt-in) and goes on
 tracking: the state and covariance it reports are the mixture's moments, honest however wide,
 and the first target seen reweighs the components, until the moments are narrow again and one
 Gaussian takes over. The wide belief is given up (lost) when its own tests say so
