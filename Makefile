@@ -9,7 +9,7 @@ BIN    := $(VENV)/bin
 BASE   := $(VENV)/.installed
 TESTS  := $(VENV)/.installed-test
 # (in a variable: a comma written inside $(call ...) would split its arguments)
-TEST_EXTRAS := .[test,ray,rllib,record,rosbag]
+TEST_EXTRAS := .[test,ray,rllib,record,rosbag,pbr]
 # Python may write each module's bytecode (into .venv and beside the sources, where numba's cache
 # already lives): a machine that sets PYTHONDONTWRITEBYTECODE would otherwise compile every module
 # from source in every process the demo and the tests start (about 2 s each)

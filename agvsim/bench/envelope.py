@@ -27,20 +27,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 
 import numpy as np
 
-from agvsim.bench.envelope_conditions import (ALPHA_MIN_ROWS, CHI2_3D_3SIGMA, FLOORS, GATE_BETA,
-                                              GATE_DISTANCE, NAMES, SPEED_SIZE, parse_conditions)
+from agvsim.bench.envelope_conditions import ALPHA_MIN_ROWS, NAMES, parse_conditions
 from agvsim.bench.floors import floor_line, verdict
+from agvsim.bench.tally import KEEP_FRAMES, Tally, settings_dict, summary_floors, thesis_fy
 from agvsim.bench.peers import APRILTAG_INSTALL, one_opencv_thread, peer_detectors
 from agvsim.commands._args import number
 
-#: frame indices kept per condition for the report (missed, falsely detected, worst)
-KEEP_FRAMES = 10
+#: the report's first line (another benchmark reporting through :func:`format_table` sets ``title``)
+TITLE = "localizer over a real camera's envelope (independent frames)"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -63,124 +62,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "loop that only detects)")
     p.add_argument("--save-frames", type=str, default=None, metavar="DIR",
                    help="write every frame (PNG) with its truth and detections (JSON) under DIR/<condition>/")
-
-
-def _pct(x) -> float | None:
-    return None if x is None else 100.0 * x
-
-
-class _Tally:
-    """The figures of one condition, frame by frame."""
-
-    def __init__(self, condition, camera):
-        self.condition, self.camera = condition, camera
-        self.rows_min = ALPHA_MIN_ROWS * camera.fy / _thesis_fy()
-        self.frames = self.found = self.false = 0
-        self.missed, self.false_frames = [], []
-        self.err = []  # (d %, beta deg, alpha deg, rows, z_d, z_beta, z_alpha, mahalanobis^2, frame)
-        self.ms = []
-        self.peer_ms: dict[str, list] = {}  # peer -> ms per frame (``--peers``)
-        self.peer_found: dict[str, int] = {}  # peer -> frames where it found a marker
-
-    def add_peer(self, name: str, found: bool, seconds: float) -> None:
-        """A peer's call on the frame just added: whether it found its marker, its ``seconds``."""
-        self.peer_ms.setdefault(name, []).append(1000.0 * seconds)
-        self.peer_found[name] = self.peer_found.get(name, 0) + bool(found)
-
-    def add(self, index: int, pose, obs, seconds: float) -> None:
-        """Frame ``index``: the truth ``pose``, the detections ``obs`` and the call's ``seconds``."""
-        from agvsim.bench.envelope_frames import bar_rows
-
-        self.frames += 1
-        self.ms.append(1000.0 * seconds)
-        near = [o for o in obs if abs(o.beta - pose.beta) < GATE_BETA
-                and abs(o.distance / pose.distance - 1.0) < GATE_DISTANCE]
-        best = min(near, key=lambda o: abs(o.beta - pose.beta)) if near else None
-        n_false = len(obs) - (best is not None)
-        self.false += n_false
-        if n_false and len(self.false_frames) < KEEP_FRAMES:
-            self.false_frames.append(index)
-        if best is None:
-            if len(self.missed) < KEEP_FRAMES:
-                self.missed.append(index)
-            return
-        self.found += 1
-        e = np.array([best.distance - pose.distance, best.beta - pose.beta,
-                      math.remainder(best.alpha - pose.alpha, 2 * math.pi)])
-        c = np.asarray(best.covariance, float)
-        sd = np.sqrt(np.clip(np.diag(c), 1e-300, None))
-        try:
-            m2 = float(e @ np.linalg.solve(c, e))
-        except np.linalg.LinAlgError:
-            m2 = math.inf
-        if not math.isfinite(m2) or m2 < 0:
-            m2 = math.inf
-        self.err.append((100.0 * abs(e[0]) / pose.distance, math.degrees(abs(e[1])), math.degrees(abs(e[2])),
-                         bar_rows(pose, self.camera), *(np.abs(e) / sd).tolist(), m2, index))
-
-    def report(self) -> dict:
-        s = self.condition.settings
-        out = {"name": self.condition.name, "help": self.condition.help, "size": f"{s.width}x{s.height}",
-               "settings": {k: getattr(s, k) for k in s.__dataclass_fields__},
-               "frames": self.frames, "found": self.found,
-               "detection_pct": _pct(self.found / self.frames) if self.frames else None,
-               "missed_frames": self.missed, "false_detections": self.false, "false_frames": self.false_frames,
-               "alpha_min_rows": self.rows_min}
-        a = np.array([x[:8] for x in self.err], float).reshape(-1, 8)
-        big = a[:, 3] >= self.rows_min
-        have = a.shape[0] > 0
-        out.update({
-            "d_error_pct_mean": float(a[:, 0].mean()) if have else None,
-            "d_error_pct_max": float(a[:, 0].max()) if have else None,
-            "beta_error_deg_mean": float(a[:, 1].mean()) if have else None,
-            "beta_error_deg_max": float(a[:, 1].max()) if have else None,
-            "alpha_frames": int(big.sum()),
-            "alpha_error_deg_mean": float(a[big, 2].mean()) if big.any() else None,
-            "alpha_error_deg_max": float(a[big, 2].max()) if big.any() else None,
-            "alpha_error_deg_max_all_sizes": float(a[:, 2].max()) if have else None,
-            "within_3sigma_pct": {k: (_pct(float((a[:, i] <= 3.0).mean())) if have else None)
-                                  for k, i in (("d", 4), ("beta", 5), ("alpha", 6))},
-            "worst_error_in_sigmas": {k: (float(a[:, i].max()) if have else None)
-                                      for k, i in (("d", 4), ("beta", 5), ("alpha", 6))},
-            "worst_d_frame": int(self.err[int(np.argmax(a[:, 0]))][8]) if have else None,
-            "ms_median": float(np.median(self.ms)) if self.ms else None,
-            "ms_p99": float(np.percentile(self.ms, 99)) if self.ms else None,
-            "ms_max": float(np.max(self.ms)) if self.ms else None,
-        })
-        ours = out["ms_median"]
-        out["peers"] = {k: {"ms_median": float(np.median(v)), "found": self.peer_found[k],
-                            "times_slower": float(np.median(v)) / ours if ours else None}
-                        for k, v in self.peer_ms.items()}
-        out["within_3sigma_pct"]["mahalanobis_3d"] = _pct(float((a[:, 7] <= CHI2_3D_3SIGMA).mean())) if have else None
-        w = [v for v in out["within_3sigma_pct"].values() if v is not None]
-        out["within_3sigma_pct_worst"] = min(w) if len(w) == 4 else None
-        out["floors"] = _floors(out, (s.width, s.height))
-        return out
-
-
-def _thesis_fy() -> float:
-    from localizer import Camera
-
-    return Camera.thesis(16.0).fy
-
-
-def _floors(r: dict, size: tuple[int, int]) -> dict:
-    values = {"detection_pct": r["detection_pct"], "d_error_pct_mean": r["d_error_pct_mean"],
-              "d_error_pct_max": r["d_error_pct_max"], "alpha_error_deg_mean": r["alpha_error_deg_mean"],
-              "alpha_error_deg_max": r["alpha_error_deg_max"], "within_3sigma_pct": r["within_3sigma_pct_worst"],
-              "false_detections": r["false_detections"], "ms_median": r["ms_median"], "ms_p99": r["ms_p99"],
-              "ms_median_2448": r["ms_median"],
-              "peer_ratio": min((p["times_slower"] for p in r["peers"].values()), default=None)}
-    out = {}
-    for key, (op, limit, unit, _) in FLOORS.items():
-        if key in SPEED_SIZE and SPEED_SIZE[key] != size:
-            continue
-        if key == "peer_ratio" and not r["peers"]:
-            continue  # peers not run
-        if key.startswith("alpha") and r["found"] and not r["alpha_frames"]:
-            continue  # targets found, none of them tall enough for the alpha floors
-        out[key] = verdict(values[key], op, limit, unit)
-    return out
 
 
 def in_turn(contenders: dict, image: np.ndarray, repeats: int) -> dict:
@@ -224,7 +105,7 @@ def run(args) -> dict:
 def _run(args) -> dict:
     from localizer import detect_targets
 
-    from agvsim.bench.envelope_frames import MARKER_SIDE, camera_for, expose_frame, render_scene
+    from agvsim.bench.envelope_frames import MARKER_SIDE, bar_rows, camera_for, expose_frame, render_scene
 
     conditions = parse_conditions(args.conditions)
     sizes: dict[tuple[int, int], list] = {}
@@ -245,7 +126,8 @@ def _run(args) -> dict:
                 frame = expose_frame(c.settings, rendered)
                 tally = tallies.get(c.name)
                 if tally is None:  # the warm-up calls (kernel load, first-size caches): not timed
-                    tally = tallies[c.name] = _Tally(c, frame.camera)
+                    tally = tallies[c.name] = Tally(c.name, c.help, (w, h), settings_dict(c.settings),
+                                                     ALPHA_MIN_ROWS * frame.camera.fy / thesis_fy())
                     detect_targets(frame.image, frame.camera, method=args.method)
                     if args.method == "exact":  # (and the photometric refinement's kernels, loaded once
                         # per process: else the first frame that takes it pays their load, ~30 ms)
@@ -253,7 +135,7 @@ def _run(args) -> dict:
                 timed = in_turn({"localizer": lambda im, cam=frame.camera: detect_targets(im, cam, method=args.method),
                                  **peers}, frame.image, args.repeats)
                 obs, dt = timed.pop("localizer")
-                tally.add(i, rendered.scene.pose, obs, dt)
+                tally.add(i, rendered.scene.pose, obs, dt, bar_rows(rendered.scene.pose, frame.camera))
                 for name, (found, dt) in timed.items():
                     tally.add_peer(name, len(found) > 0, dt)
                 if args.save_frames:
@@ -277,34 +159,9 @@ def _run(args) -> dict:
         result["target_free"][f"{w}x{h}"] = free
         _progress(f"envelope {w}x{h}: target-free frames done ({time.perf_counter() - t_start:.0f} s)")
     result["conditions"] = [reports[c.name] for c in conditions]
-    result["floors"] = summary_floors(result)
+    result["floors"] = summary_floors(result["conditions"], result["target_free"])
     result["seconds"] = time.perf_counter() - t_start
     return result
-
-
-def summary_floors(result: dict) -> dict:
-    """Each floor over every condition it applies to: the worst value, met only if met in
-    every one, and the conditions that miss it (name -> value)."""
-    out = {}
-    for key, (op, limit, unit, what) in FLOORS.items():
-        rows = [(r["name"], r["floors"][key]) for r in result["conditions"] if key in r["floors"]]
-        if not rows:
-            continue
-        vals = [f["value"] for _, f in rows if f["value"] is not None]
-        worst = (min(vals) if op == ">=" else max(vals)) if vals else None
-        v = verdict(worst, op, limit, unit)  # the worst value there is; a condition without one fails
-        v["met"] = v["met"] and len(vals) == len(rows)
-        v["failing"] = {name: f["value"] for name, f in rows if not f["met"]}
-        v["what"] = what
-        out[key] = v
-    free = result["target_free"]
-    if free:
-        total = sum(f["false_detections"] for f in free.values())
-        v = verdict(total, "<=", 0.0)
-        v["failing"] = {size: f["false_detections"] for size, f in free.items() if f["false_detections"]}
-        v["what"] = "false detections on target-free frames"
-        out["target_free_false_detections"] = v
-    return out
 
 
 def _f(x, spec: str = ".2f") -> str:
@@ -314,8 +171,7 @@ def _f(x, spec: str = ".2f") -> str:
 def format_table(r: dict) -> str:
     m = r["machine"]
     lines = [f"machine: {m.get('cpu_model')} ({m.get('cpu_count')} cpus), python {m.get('python')}",
-             f"localizer over a real camera's envelope (independent frames), method {r['method']}, seed {r['seed']}, "
-             f"{r['seconds']:.0f} s",
+             f"{r.get('title', TITLE)}, method {r['method']}, seed {r['seed']}, {r['seconds']:.0f} s",
              f"{'condition':<12} {'size':>9} {'found':>9} {'false':>5} {'d% mean/max':>12} {'beta deg':>12} "
              f"{'alpha deg [n]':>17} {'3sigma% d/b/a/3D':>18} {'ms med/p99':>12}"]
     for c in r["conditions"]:

@@ -22,6 +22,8 @@ BENCHMARKS: dict[str, str] = {
     "filter-soak": "the pose filter under 10^6 odometry increments and hostile frames: P sane, no wrong relocalization",
     "envelope": "localizer accuracy and speed per camera condition (blur, defocus, motion, sRGB, vignetting, "
                 "JPEG, Bayer, noise, resolution) on independently rendered frames",
+    "pbr": "localizer accuracy and speed on physically based frames (Mitsuba 3: a printed sheet on a lit, "
+           "textured wall, a thin lens, a colour camera's sensor), reported on the held-out split",
     "sweep": "one drift study (30 rendered runs) on the local pool and on a local Ray, 1 and 2 workers",
     "replay": "logged drives: agvsim track on the demo's exported log and bag (round trip, real-time factor) "
               "and the cost of --record",
