@@ -103,7 +103,10 @@ class AGVEnv(gym.Env):
     lens={lenses}, lighting_randomization=0.0, observe_image=False,
     observe_status=False (True in -v1, -v2), covariance="matrix" ("flat" in -v2), policy_rate=10.0, goal_radius=0.5,
     terminate_on_collision=False, collision_penalty=1.0, time_cost=0.01,
-    error_scale=0.1, render_mode=None | "rgb_array")``. Unknown keys raise
+    error_scale=0.1, filter_config=None | dict | FilterConfig, render_mode=None | "rgb_array")``.
+    ``filter_config``: the pose filter's settings, a dict of
+    :class:`localizer.filter.FilterConfig` fields set over the env's own (``{"wide":
+    WideConfig()}``: the opt-in wide belief) or a whole FilterConfig. Unknown keys raise
     ``ValueError``. See :class:`envs.config.EnvConfig` for units.
 
     ## Info
@@ -183,7 +186,8 @@ class AGVEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.vision = VisionConfig(mount=self.config.camera_mount, focal_mm=float(self.config.lens)).for_map(self.map)
         self._loop_config = LoopConfig(sim=self.sim_config, vision_config=self.vision,
-                                       camera_rate=self.config.camera_rate, latency=self.config.camera_latency)
+                                       camera_rate=self.config.camera_rate, latency=self.config.camera_latency,
+                                       filter=self._filter_config())
         needs_camera = self.config.localization == "ekf" or self.config.observe_image
         # one observation source per env, reused across episodes: a rendered
         # source owns the (lazily created) GL context
@@ -313,6 +317,15 @@ class AGVEnv(gym.Env):
         self.__init__(render_mode=state["render_mode"], **state["kwargs"])
 
     # -- helpers ---------------------------------------------------------------
+    def _filter_config(self):
+        """The filter's settings from ``filter_config`` (None: the loop's own default)."""
+        fc = self.config.filter_config
+        if not isinstance(fc, dict):
+            return fc
+        from agvsim.loop.closed_loop import filter_config_for
+
+        return filter_config_for(self.sim_config, self.vision, **fc)
+
     def _reset_options(self, options) -> tuple:
         """(start pose or None, believed pose, "unknown" or None) from ``reset``'s ``options``;
         one ``ValueError`` naming the option, its value and what was expected."""

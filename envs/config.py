@@ -10,6 +10,7 @@ from agvsim.sensors.backends import check_backend
 from agvsim.sensors.vision import LENSES_MM
 from agvsim.vehicle.encoders import PRESETS
 from envs.tasks import TASK_NAMES
+from localizer.filter import FilterConfig
 from localizer.model.mount import CameraMount
 from localizer.numeric import check_choice, check_number
 
@@ -56,6 +57,11 @@ class EnvConfig:
         collision_penalty: reward subtracted per contact begin.
         time_cost: reward subtracted per policy step.
         error_scale: ``localize`` task: error (m) at which the per-step reward halves.
+        filter_config: the pose filter's settings (``localization="ekf"`` only). None: the env's
+            own, :func:`agvsim.loop.closed_loop.filter_config_for` its odometry and camera; a dict
+            of :class:`localizer.filter.FilterConfig` fields set over those, e.g.
+            ``{"wide": localizer.filter.wide.WideConfig()}`` for the opt-in wide belief; or a
+            whole FilterConfig, used as it is (its motion noise and gate included).
     """
 
     map: str = "plant_floor"
@@ -79,6 +85,7 @@ class EnvConfig:
     collision_penalty: float = 1.0  # reward units per contact
     time_cost: float = 0.01  # reward units per step
     error_scale: float = 0.1  # m
+    filter_config: FilterConfig | dict | None = None
 
     def __post_init__(self) -> None:
         check_choice("EnvConfig.task", self.task, TASK_NAMES)
@@ -103,6 +110,7 @@ class EnvConfig:
         if self.lighting_randomization > 0 and not source_class(self.observations).has_exposure:
             raise ValueError(f"EnvConfig.lighting_randomization={self.lighting_randomization!r} needs a source "
                              f"with an exposure; observations={self.observations!r} has none")
+        self._check_filter_config()
         check_number("EnvConfig.camera_latency", self.camera_latency, low=0.0, unit="s")
         if check_number("EnvConfig.lens", self.lens, unit="mm") not in LENSES_MM:
             raise ValueError(f"EnvConfig.lens must be one of {', '.join(f'{v:g}' for v in LENSES_MM)} (mm), "
@@ -115,6 +123,27 @@ class EnvConfig:
         for name in ("observe_image", "observe_status", "terminate_on_collision"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"EnvConfig.{name} must be True or False, got {getattr(self, name)!r}")
+
+    def _check_filter_config(self) -> None:
+        """``filter_config``: None, a FilterConfig or a dict of its fields (checked now, by
+        building one, not at the first reset); a copy of a dict is kept."""
+        fc = self.filter_config
+        if fc is None:
+            return
+        if self.localization != "ekf":
+            raise ValueError(f"EnvConfig.filter_config needs localization='ekf' (this env observes "
+                             f"{self.localization!r})")
+        if isinstance(fc, dict):
+            known = [f.name for f in fields(FilterConfig)]
+            unknown = sorted(str(k) for k in set(fc) - set(known))
+            if unknown:
+                raise ValueError(f"EnvConfig.filter_config: unknown field(s) {', '.join(unknown)}; "
+                                 f"expected some of {', '.join(known)}")
+            FilterConfig(**fc)
+            object.__setattr__(self, "filter_config", dict(fc))
+        elif not isinstance(fc, FilterConfig):
+            raise ValueError("EnvConfig.filter_config must be None, a localizer.filter.FilterConfig or a dict of "
+                             f"its fields, got {fc!r}")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> "EnvConfig":

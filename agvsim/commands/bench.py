@@ -18,6 +18,8 @@ BENCHMARKS: dict[str, str] = {
     "env": "Gymnasium env steps per second, real-time factor and peak memory",
     "render": "camera frames: ms per 512x480 frame, raycaster and pyrender (EGL/llvmpipe) on the same poses",
     "localization-integrity": "does the estimate lie? random agents, kidnapping, unknown starts, wall pushes",
+    "availability": "the pose filter under an agent's driving (random, forward-biased, into a wall): tracking, "
+                    "honesty, false losses, recovery",
     "fuzz": "localizer on random target-free frames: 0 crashes, 0 false detections, p99 ms per frame",
     "filter-soak": "the pose filter under 10^6 odometry increments and hostile frames: P sane, no wrong relocalization",
     "envelope": "localizer accuracy and speed per camera condition (blur, defocus, motion, sRGB, vignetting, "

@@ -26,8 +26,8 @@ class FilterConfig:
             ``lost_heading_sigma``; None (the default): it declares itself lost there instead.
             Opt-in: under uniform random driving it keeps tracking about 90 % of steps instead
             of 30-75 %, but its mixture can collapse onto a look-alike target's component, a
-            confident wrong pose the one Gaussian does not produce (BENCHMARKS.md, filter
-            availability).
+            confident wrong pose the one Gaussian does not produce (BENCHMARKS.md, availability
+            under an agent's driving: ``agvsim bench availability --wide``).
         measurement_floor: (σ_d m, σ_β rad, σ_α rad) added in quadrature to every
             observation's covariance (camera mount and map survey errors).
         lost_position_sigma: position σ (m) above which one Gaussian is given up (for the wide

@@ -66,3 +66,30 @@ def test_goto_terminates_at_the_goal():
     env.reset(seed=2)
     _, _, terminated, _, _ = env.step(np.zeros(2, np.float32))
     assert terminated  # every station is within 100 m
+
+
+def test_filter_config_reaches_the_filter_over_the_envs_own():
+    from agvsim.loop.closed_loop import filter_config_for
+    from localizer.filter import FilterConfig
+    from localizer.filter.wide import WideConfig
+
+    plain = gym.make("agvsim/PlantFloor-v2", **FAST).unwrapped
+    plain.reset(seed=0)
+    assert plain.loop.ekf.config.wide is None
+    env = gym.make("agvsim/PlantFloor-v2", **FAST, filter_config={"wide": WideConfig()}).unwrapped
+    env.reset(seed=0)
+    own = filter_config_for(env.sim_config, env.vision)
+    assert env.loop.ekf.config.wide == WideConfig() and env.loop.ekf.config.noise == own.noise
+    assert env.loop.ekf.config.gate == plain.loop.ekf.config.gate  # the env's camera limits kept
+    whole = FilterConfig(lost_rejected_frames=5)
+    env = gym.make("agvsim/Corridor-v2", **FAST, filter_config=whole).unwrapped
+    env.reset(seed=0)
+    assert env.loop.ekf.config is whole
+    with pytest.raises(ValueError, match="filter_config: unknown field.*wid\\b"):
+        EnvConfig(filter_config={"wid": WideConfig()})
+    with pytest.raises(ValueError, match="FilterConfig.lost_rejected_frames must be"):
+        EnvConfig(filter_config={"lost_rejected_frames": 0})
+    with pytest.raises(ValueError, match="must be None, a localizer.filter.FilterConfig or a dict"):
+        EnvConfig(filter_config="wide")
+    with pytest.raises(ValueError, match="filter_config needs localization='ekf'"):
+        EnvConfig(localization="truth", filter_config={})
