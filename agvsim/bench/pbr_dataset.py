@@ -55,7 +55,7 @@ PLAN: tuple[Batch, ...] = (
     Batch(512, 480, 16.0, True, 72),
     Batch(512, 480, 50.0, True, 48),
     Batch(512, 480, 16.0, False, 16),
-    Batch(1280, 1200, 16.0, True, 16),
+    Batch(1280, 1200, 16.0, True, 12),
 )
 
 
