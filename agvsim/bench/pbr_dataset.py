@@ -35,8 +35,9 @@ SPP = 16
 SPLITS = ("held-out", "tune")
 #: in-spec at 512 x 480 (scaled with the resolution): the narrower bar at least this wide (px)
 #: and the shorter this tall (rows), the blur's sd at most this (px), the noise's sd at most
-#: this (grey levels)
-SPEC_BAR_PX, SPEC_BAR_ROWS, SPEC_BLUR_SD, SPEC_NOISE = 5.0, 16.0, 3.0, 8.0
+#: this (grey levels), the bars' contrast against the gap at least this (grey levels: a target
+#: lost in the dark of a frame exposed for a lamp's hot spot is not clearly visible)
+SPEC_BAR_PX, SPEC_BAR_ROWS, SPEC_BLUR_SD, SPEC_NOISE, SPEC_CONTRAST = 5.0, 16.0, 3.0, 8.0, 20.0
 
 
 @dataclass(frozen=True)
@@ -80,10 +81,25 @@ def frame_paths(folder: Path, index: int, batch: Batch, lossless: bool) -> tuple
     return d / f"{index:04d}.{'png' if lossless else 'jpg'}", d / f"{index:04d}.json"
 
 
-def attributes(scene: PbrScene, noise: float, target: TargetSpec = TargetSpec()) -> dict:
+def contrast(frame: np.ndarray, scene: PbrScene, target: TargetSpec = TargetSpec()) -> float:
+    """The bars' contrast in ``frame`` (grey levels): the median of the gap's middle less the mean
+    of the bars' middles' medians, absolute (windows of half a bar's width and height)."""
+    camera = camera_for(scene.width, scene.height, scene.focal_mm)
+    pose, b, h = scene.pose, target.bar_width, target.bar_height
+    values = []
+    for u in (-b, 0.0, b):
+        corners = camera.project(pose.points(np.array([u - b / 4, u + b / 4]), np.array([-h / 4, h / 4])))
+        (x0, y0), (x1, y1) = np.floor(corners.min(axis=0)).astype(int), np.ceil(corners.max(axis=0)).astype(int)
+        window = frame[max(y0, 0):max(y1, y0 + 1) + 1, max(x0, 0):max(x1, x0 + 1) + 1]
+        values.append(float(np.median(window)) if window.size else float("nan"))
+    return abs(values[1] - 0.5 * (values[0] + values[2]))
+
+
+def attributes(scene: PbrScene, noise: float, frame: np.ndarray, target: TargetSpec = TargetSpec()) -> dict:
     """What a frame shows, for the report's conditions: the narrower bar's width (px) and the
     shorter's height (rows), the defocus disc's diameter and sd (px), the noise (grey levels), the
-    angle, whether the dark band crosses the target's face, and whether all are in spec."""
+    bars' contrast (:func:`contrast`), the angle, whether the dark band crosses the target's face,
+    and whether all are in spec."""
     camera = camera_for(scene.width, scene.height, scene.focal_mm)
     scale = camera.width / 512.0
     out = {"noise_grey": noise, "alpha_deg": math.degrees(scene.alpha), "lens_mm": scene.focal_mm,
@@ -101,9 +117,11 @@ def attributes(scene: PbrScene, noise: float, target: TargetSpec = TargetSpec())
     rows = camera.fy * target.bar_height / max(z)
     half = 0.5 * target.outer_height
     band = scene.band[0] < half and scene.band[1] > -half
-    out.update(bar_px=float(min(xs[1] - xs[0], xs[3] - xs[2])), bar_rows=float(rows), dark_band_on_face=bool(band))
+    out.update(bar_px=float(min(xs[1] - xs[0], xs[3] - xs[2])), bar_rows=float(rows), dark_band_on_face=bool(band),
+               contrast_grey=contrast(frame, scene, target))
     out["in_spec"] = bool(out["bar_px"] >= SPEC_BAR_PX * scale and rows >= SPEC_BAR_ROWS * scale
-                          and out["blur_sd_px"] <= SPEC_BLUR_SD * scale and noise <= SPEC_NOISE)
+                          and out["blur_sd_px"] <= SPEC_BLUR_SD * scale and noise <= SPEC_NOISE
+                          and out["contrast_grey"] >= SPEC_CONTRAST)
     return out
 
 
@@ -131,7 +149,7 @@ def make_frame(folder: Path, index: int, batch: Batch, seed: int) -> dict:
     noise = float(np.std(frame.astype(np.float64) - clean))
     image_path, record_path = frame_paths(folder, index, batch, settings.jpeg_quality == 0)
     record = {"index": index, "split": split_of(index), "image": image_path.name, "scene": scene.to_dict(),
-              "sensor": settings.to_dict(), "attributes": attributes(scene, noise)}
+              "sensor": settings.to_dict(), "attributes": attributes(scene, noise, frame)}
     _write(image_path, stored)
     _write(record_path, (json.dumps(record, indent=1) + "\n").encode())
     return record
