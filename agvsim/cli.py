@@ -14,7 +14,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
+import threading
 import traceback
 
 #: Subcommand modules under agvsim.commands, in the order --help lists them.
@@ -50,25 +52,56 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _CtrlC:
+    """Python's Ctrl-C (raise ``KeyboardInterrupt``), noting that it came: a library's compiled
+    code may turn the interrupt raised inside it into an error of its own (matplotlib's path
+    code reports ``ValueError: Invalid affine transformation matrix``), which is then no user's
+    mistake but the interrupt. Installed by :func:`main` only over Python's own handler, in the
+    main thread, and put back when it returns."""
+
+    def __init__(self) -> None:
+        self.came = False
+
+    def __call__(self, signum, frame):
+        self.came = True
+        raise KeyboardInterrupt
+
+    def __enter__(self) -> "_CtrlC":
+        self.previous = None
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self.previous = signal.signal(signal.SIGINT, self)
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv  # (also after the command's name)
     args = None
-    try:
-        parser = build_parser()
-        args = parser.parse_args([a for a in argv if a != "--debug"])
-        return int(args.func(args) or 0)
-    except KeyboardInterrupt:  # Ctrl-C in a command that keeps nothing to resume (or while starting)
-        print(f"{_name(args)}: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:  # the reader went away (``agvsim ... | head``): nothing more to say
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
-    except (ValueError, OSError) as exc:  # bad values, files that cannot be read or written
-        if debug:
-            traceback.print_exc()
-        print(f"{_name(args)}: error: {_one_line(exc)}", file=sys.stderr)
-        return USAGE_ERROR
+    with _CtrlC() as ctrl_c:
+        try:
+            parser = build_parser()
+            args = parser.parse_args([a for a in argv if a != "--debug"])
+            return int(args.func(args) or 0)
+        except KeyboardInterrupt:  # Ctrl-C in a command that keeps nothing to resume (or while starting)
+            print(f"{_name(args)}: interrupted", file=sys.stderr)
+            return 130
+        except BrokenPipeError:  # the reader went away (``agvsim ... | head``): nothing more to say
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 1
+        except (ValueError, OSError) as exc:  # bad values, files that cannot be read or written
+            if ctrl_c.came:  # a Ctrl-C that a library reported as an error of its own
+                print(f"{_name(args)}: interrupted", file=sys.stderr)
+                return 130
+            if debug:
+                traceback.print_exc()
+            print(f"{_name(args)}: error: {_one_line(exc)}", file=sys.stderr)
+            return USAGE_ERROR
 
 
 def _name(args) -> str:

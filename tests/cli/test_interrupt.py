@@ -4,6 +4,7 @@ process behind; a folder holding other settings is not overwritten without ``--r
 of Ctrl-C and SIGKILL at random moments, each followed by the same command."""
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -347,3 +348,35 @@ def test_a_ctrl_c_before_the_seeds_or_during_the_summary_says_what_is_saved(tmp_
     assert main(argv) == 0
     err = capsys.readouterr().err
     assert "2 seeds of 2 already finished" in err and (out / "drift.json").exists()
+
+
+def test_a_ctrl_c_a_library_reports_as_its_own_error_is_still_an_interrupt(monkeypatch, capsys):
+    """matplotlib's compiled path code turns a KeyboardInterrupt raised inside it into
+    ``ValueError: Invalid affine transformation matrix``: the command line says "interrupted" and
+    exits 130, not "error" and 2; a ValueError with no Ctrl-C before it stays a user's mistake."""
+    import agvsim.cli as cli
+
+    def masked(args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1.0)  # (the handler runs here)
+        except KeyboardInterrupt:
+            raise ValueError("Invalid affine transformation matrix") from None
+        return 0
+
+    def mistake(args):
+        raise ValueError("--frames: expected a positive integer")
+
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)  # (an xdist worker ignores it)
+    try:
+        for func, code, words in ((masked, 130, "interrupted"), (mistake, 2, "error: --frames")):
+            class Parser:
+                def parse_args(self, argv, func=func):
+                    return argparse.Namespace(command="warmup", func=func)
+
+            monkeypatch.setattr(cli, "build_parser", Parser)
+            assert cli.main(["warmup"]) == code
+            assert words in capsys.readouterr().err
+            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+    finally:
+        signal.signal(signal.SIGINT, handler)
