@@ -47,7 +47,8 @@ def test_contact_slip_variance_grows_with_the_counted_wheel_motion():
     for k in range(100):
         ekf.add_odometry((k + 1) * DT, 0.1, 0.0, in_contact=True)
     P = ekf.covariance()
-    expected = math.sqrt((10.0 ** 2 + 10.0 ** 2) / 4.0)  # k = 1
+    k = CONFIG.contact_slip
+    expected = math.sqrt(k ** 2 * (10.0 ** 2 + 10.0 ** 2) / 4.0)
     assert math.sqrt(P[0, 0]) == pytest.approx(expected, rel=0.02)
     assert ekf.position_sigma() > 5.0
     # the same motion out of contact: the wheel noise only (millimetres)
