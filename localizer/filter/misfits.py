@@ -25,11 +25,17 @@ def place(m, camera_pose) -> tuple[float, float, float]:
 
 
 def explained_by_map(m, camera_pose, targets, radius: float, max_yaw: float) -> bool:
-    """Whether ``m``, placed in the map from ``camera_pose`` (:func:`place`), lands within
-    ``radius`` (m) of a target of ``targets`` (a :class:`~localizer.filter.measurement.TargetMap`)
-    of its polarity (or of unknown polarity) facing within ``max_yaw`` (rad) of its way."""
+    """Whether ``m``, placed in the map from ``camera_pose`` (:func:`place`), lands on a target of
+    ``targets`` (a :class:`~localizer.filter.measurement.TargetMap`) of its polarity (or of unknown
+    polarity) facing its way: within ``radius`` (m) of it, or within 3 sigma of the place when the
+    measurement is looser (``m.R``: sd of d, and d times sd of beta), and facing within
+    ``max_yaw`` (rad), or 3 sigma of alpha (a far, steep target's alpha may be known to tens of
+    degrees: its facing then tells nothing)."""
     px, py, yaw = place(m, camera_pose)
-    r2 = radius ** 2
+    d = float(m.z[0])
+    sd_d, sd_beta, sd_alpha = (math.sqrt(max(float(m.R[i][i]), 0.0)) for i in range(3))
+    r2 = max(radius, 3.0 * math.hypot(sd_d, d * sd_beta)) ** 2
+    max_yaw = max(max_yaw, 3.0 * sd_alpha)
     for j in range(len(targets)):
         pol = targets.polarities[j]
         if pol is not None and m.polarity is not None and pol != m.polarity:

@@ -101,3 +101,18 @@ def test_a_detection_the_map_explains_is_no_misfit():
     assert not explained_by_map(moved, cam, targets, 0.3, math.radians(10.0))
     other = "negative" if m.polarity == "positive" else "positive"
     assert not explained_by_map(Measurement(m.z, m.R, other), cam, targets, 0.3, math.radians(10.0))
+
+
+def test_a_loose_detection_is_explained_within_its_own_uncertainty():
+    """A far, steep target's detection: its alpha known to 30 deg, its range to 0.5 m. Placed 0.4 m
+    from the map target and facing 20 deg off, it is that target within 3 sigma (a real target the
+    filter's view limits leave out is no misfit); the same offsets measured tightly are not."""
+    targets = corridor_targets()
+    x = np.array([-1.6, 0.0, 0.0])
+    cam = MOUNT.camera_pose(x)
+    (j, m), *_ = measure(x, targets, np.random.default_rng(1), floor=(1e-4, 1e-5, 1e-4))
+    off = m.z + np.array([0.4, 0.0, math.radians(20.0)])
+    loose = Measurement(off, np.diag([0.5, 2e-4, math.radians(30.0)]) ** 2, m.polarity)
+    tight = Measurement(off, m.R, m.polarity)
+    assert explained_by_map(loose, cam, targets, 0.3, math.radians(10.0))
+    assert not explained_by_map(tight, cam, targets, 0.3, math.radians(10.0))
