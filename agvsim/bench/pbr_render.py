@@ -132,8 +132,8 @@ def render_radiance(scene: PbrScene, spp: int, seed: int, target: TargetSpec = T
     wall = wall_texture(scene)
     total = None
     for n, light in enumerate(PASSES):
-        if light == "panel" and scene.panel_radiance <= 0:
-            continue
+        if (light == "panel" and scene.panel_radiance <= 0) or (light == "lamp" and scene.lamp_power <= 0):
+            continue  # (a light that is off adds nothing)
         image = np.asarray(mi.render(mi.load_dict(scene_dict(scene, spp, light, target, wall)),
                                      seed=int(seed) * len(PASSES) + n), np.float32)
         image = image * scene.ambient if light == "room" else image

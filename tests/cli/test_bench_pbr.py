@@ -162,16 +162,16 @@ def test_the_records_attributes_follow_from_the_frames_and_their_scenes():
 @pytest.mark.slow
 def test_generate_makes_what_a_folder_lacks_and_resumes(tmp_path, monkeypatch):
     pytest.importorskip("mitsuba")
-    monkeypatch.setattr(pbr_dataset, "PLAN", (pbr_dataset.Batch(512, 480, 16.0, True, 2),))
+    monkeypatch.setattr(pbr_dataset, "PLAN", (pbr_dataset.Batch(128, 120, 16.0, True, 2),))
     monkeypatch.setattr(pbr_dataset, "SPP", 4)
     assert pbr_dataset.generate(tmp_path, seed=7) == 2
     records = pbr_dataset.read_set(tmp_path)
     assert [r["index"] for r in records] == [0, 1] and [r["split"] for r in records] == ["tune", "held-out"]
-    first = (tmp_path / "512x480" / records[0]["image"]).read_bytes()
+    first = (tmp_path / "128x120" / records[0]["image"]).read_bytes()
     assert pbr_dataset.generate(tmp_path, seed=7) == 0  # nothing redone
-    (tmp_path / "512x480" / "0001.json").unlink()  # as if stopped between a frame's image and its record
+    (tmp_path / "128x120" / "0001.json").unlink()  # as if stopped between a frame's image and its record
     assert pbr_dataset.generate(tmp_path, seed=7) == 1
-    assert (tmp_path / "512x480" / records[0]["image"]).read_bytes() == first
+    assert (tmp_path / "128x120" / records[0]["image"]).read_bytes() == first
     assert pbr_dataset.read_set(tmp_path)[1]["scene"] == records[1]["scene"]  # the same frame again
     with pytest.raises(ValueError, match="different set"):
         pbr_dataset.generate(tmp_path, seed=8)
