@@ -19,15 +19,15 @@ localizer runs with its defaults (``response="auto"``: it is not told each frame
 from __future__ import annotations
 
 import argparse
-import math
 import time
 from pathlib import Path
 from typing import Callable, NamedTuple
 
 from agvsim.bench.envelope import format_table as _envelope_table
-from agvsim.bench.envelope_conditions import ALPHA_MIN_ROWS
+from agvsim.bench.envelope_conditions import ALPHA_MIN_ROWS, GATE_BETA
 from agvsim.bench.floors import verdict
 from agvsim.bench.pbr_dataset import DEFAULT_DIR, SPLITS, read_set
+from agvsim.bench.pbr_scene import camera_for
 from agvsim.bench.tally import KEEP_FRAMES, Tally, summary_floors
 from agvsim.commands._args import number
 
@@ -78,18 +78,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the set's seed, for --generate into a new folder (default 0: the shipped set)")
 
 
-def _camera(record: dict):
-    from agvsim.bench.pbr_scene import camera_for
+def _scene(record: dict):
+    from agvsim.bench.pbr_scene import PbrScene
 
-    s = record["scene"]
-    return camera_for(s["width"], s["height"], s["focal_mm"])
-
-
-def _pose(record: dict):
-    from localizer import TargetPose
-
-    s = record["scene"]
-    return TargetPose(s["distance"], s["beta"], s["alpha"], s["target_height"])
+    return PbrScene.from_dict(record["scene"])
 
 
 def _read(record: dict):
@@ -115,7 +107,8 @@ def run(args) -> dict:
     out_of_spec = {"frames": 0, "found": 0}
     warmed = set()
     for record in records:
-        camera, size = _camera(record), record["attributes"]["size"]
+        scene = _scene(record)
+        camera, size = camera_for(scene.width, scene.height, scene.focal_mm), record["attributes"]["size"]
         image = _read(record)
         if size not in warmed:  # kernel load and first-size caches: not timed
             detect_targets(image, camera, method=args.method)
@@ -132,7 +125,7 @@ def run(args) -> dict:
             continue
         if not record["attributes"]["in_spec"]:
             out_of_spec["frames"] += 1
-            out_of_spec["found"] += any(abs(o.beta - record["scene"]["beta"]) < math.radians(2.0) for o in obs)
+            out_of_spec["found"] += any(abs(o.beta - scene.beta) < GATE_BETA for o in obs)
             continue
         w, h = (int(x) for x in size.split("x"))
         for c in CONDITIONS:
@@ -140,7 +133,7 @@ def run(args) -> dict:
                 key = (size, c.name)
                 if key not in tallies:
                     tallies[key] = Tally(c.name, c.help, (w, h), {"split": args.split}, ALPHA_MIN_ROWS * h / 480.0)
-                tallies[key].add(record["index"], _pose(record), obs, seconds, record["attributes"]["bar_rows"])
+                tallies[key].add(record["index"], scene.pose, obs, seconds, record["attributes"]["bar_rows"])
     for f in free.values():
         f["floor"] = verdict(f["false_detections"], "<=", 0.0)
     conditions = [tallies[k].report() for k in sorted(tallies, key=lambda k: (k[0] != "512x480", k[0],

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agvsim.bench.envelope_frames import bar_rows
 from agvsim.bench.pbr_scene import PbrScene, camera_for, sample_scene
 from agvsim.bench.pbr_sensor import SensorSettings, expose, sample_settings
 from localizer.model.target import TargetSpec
@@ -113,8 +114,7 @@ def attributes(scene: PbrScene, noise: float, frame: np.ndarray, target: TargetS
     pose = scene.pose
     b = target.bar_width
     xs = camera.project(pose.points(np.array([-1.5, -0.5, 0.5, 1.5]) * b, np.zeros(4)))[:, 0]
-    z = [pose.z - u * math.sin(pose.alpha) for u in (-b, b)]
-    rows = camera.fy * target.bar_height / max(z)
+    rows = bar_rows(pose, camera, target)
     half = 0.5 * target.outer_height
     band = scene.band[0] < half and scene.band[1] > -half
     out.update(bar_px=float(min(xs[1] - xs[0], xs[3] - xs[2])), bar_rows=float(rows), dark_band_on_face=bool(band),

@@ -76,6 +76,11 @@ class PbrScene:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "PbrScene":
+        """The scene of a record's ``scene`` (:meth:`to_dict`; JSON lists back to tuples)."""
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
 
 def camera_for(width: int, height: int, focal_mm: float) -> Camera:
     """The thesis camera with a ``focal_mm`` lens at 512 x 480, else square pixels with the same

@@ -294,7 +294,8 @@ class ClosedLoop:
                     "hypotheses": 1, "reason": None, "lost_events": 0, "relocalizations": 0}
         ekf = self.ekf
         return {"status": ekf.status, "position_sigma": sigma, "since_fix": ekf.since_fix(now),
-                "since_tracking": ekf.since_tracking(now), "hypotheses": ekf.hypotheses, "reason": ekf.lost_reason, "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
+                "since_tracking": ekf.since_tracking(now), "hypotheses": ekf.hypotheses, "reason": ekf.lost_reason,
+                "lost_events": ekf.lost_events, "relocalizations": ekf.relocalizations}
 
     def kidnap(self, pose) -> None:
         """Carry the vehicle to ``pose`` (x m, y m, θ rad) without telling the filter (the

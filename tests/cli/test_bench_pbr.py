@@ -149,12 +149,10 @@ def test_the_records_attributes_follow_from_the_frames_and_their_scenes():
     import cv2
 
     for r in pbr_dataset.read_set(pbr_dataset.DEFAULT_DIR)[::7]:
-        scene = dict(r["scene"])
-        for k in ("lamp", "panel", "paint", "band"):
-            scene[k] = tuple(scene[k])
         frame = cv2.imread(r["path"], cv2.IMREAD_GRAYSCALE)
-        assert pbr_dataset.attributes(pbr_scene.PbrScene(**scene), r["attributes"]["noise_grey"], frame) \
-            == r["attributes"]
+        scene = pbr_scene.PbrScene.from_dict(r["scene"])
+        assert json.loads(json.dumps(scene.to_dict())) == r["scene"]
+        assert pbr_dataset.attributes(scene, r["attributes"]["noise_grey"], frame) == r["attributes"]
     dark = next(r for r in pbr_dataset.read_set(pbr_dataset.DEFAULT_DIR) if r["index"] == 63)
     assert dark["attributes"]["contrast_grey"] < pbr_dataset.SPEC_CONTRAST and not dark["attributes"]["in_spec"]
 
